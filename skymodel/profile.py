@@ -29,6 +29,7 @@ import numpy as np
 
 from .errors import SkymodelInputError
 from .geometry import EARTH_RADIUS_M, TOA_ALTITUDE_M
+from .numerics import trapezoid
 
 
 @dataclass(frozen=True)
@@ -117,7 +118,7 @@ class OpticalProfile(_MediumBase):
 
     def vertical_optical_depth(self, coefficient: np.ndarray) -> np.ndarray:
         """Trapezoidal column integral of a (n_alt, n_wl) coefficient from ground to top."""
-        return np.trapz(coefficient, self.altitudes_m, axis=0) if hasattr(np, "trapz") else np.trapezoid(coefficient, self.altitudes_m, axis=0)
+        return trapezoid(coefficient, self.altitudes_m, axis=0)
 
     def sample(self, altitudes_m) -> MediumSample:
         """Linear interpolation of every coefficient at ``altitudes_m`` (any shape);
