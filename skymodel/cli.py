@@ -1,0 +1,213 @@
+"""The ``skymodel`` command line: ``profile``, ``sun``, ``presets`` (and more as the
+renderer lands). Every command takes ``--json`` for machine-readable output; errors in
+the input print one line naming the parameter and exit with status 2."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+import numpy as np
+
+from .errors import SkymodelInputError
+
+
+def _floats(text: str) -> list[float]:
+    try:
+        return [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+
+
+def add_atmosphere_arguments(p: argparse.ArgumentParser) -> None:
+    """Options shared by every command that builds an atmosphere."""
+    g = p.add_argument_group("atmosphere")
+    g.add_argument("--location", default=None, help="location preset (see `skymodel presets`); default rural")
+    g.add_argument("--lat", type=float, default=None, help="latitude, degrees north (-90..90)")
+    g.add_argument("--lon", type=float, default=None, help="longitude, degrees east (-180..180)")
+    g.add_argument("--month", type=int, default=6, help="month 1..12 (ozone climatology); default 6")
+    g.add_argument("--aerosol", default=None, help="tropospheric aerosol type or 'none'; default the location's")
+    g.add_argument("--aod550", type=float, default=None, help="aerosol optical depth at 550 nm (0..10)")
+    g.add_argument("--turbidity", type=float, default=None, help="(tau_R + tau_A) / tau_R at 550 nm (1..64)")
+    g.add_argument("--stratospheric", default="background", help="background, volcanic or none")
+    g.add_argument("--ozone-du", type=float, default=None, help="total ozone column, Dobson units")
+    g.add_argument("--albedo", type=float, default=None, help="ground albedo 0..1; default the location's surface")
+    g.add_argument("--altitudes", type=int, default=401, help="points of the altitude grid (default 401)")
+
+
+def atmosphere_from_args(args):
+    from .atmosphere import Atmosphere
+
+    location = args.location
+    if location is None and (args.lat is None or args.lon is None or args.aerosol is None):
+        location = "rural"
+    return Atmosphere(
+        location=location, month=args.month, latitude=args.lat, longitude=args.lon, aerosol=args.aerosol,
+        aod550=args.aod550, turbidity=args.turbidity, stratospheric=args.stratospheric,
+        ozone_du=args.ozone_du, albedo=args.albedo, n_altitudes=args.altitudes,
+    )
+
+
+def profile_summary(profile, layers: int | None = None) -> dict:
+    """Column quantities per wavelength (and the layered atmosphere when ``layers``)."""
+    p = profile
+    tau_r = p.vertical_optical_depth(p.rayleigh_scattering)
+    tau_o = p.vertical_optical_depth(p.ozone_absorption)
+    sca = p.vertical_optical_depth(p.aerosol_scattering)
+    ext = sca + p.vertical_optical_depth(p.aerosol_absorption)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ssa = np.where(ext > 0, sca / np.where(ext > 0, ext, 1.0), 1.0)
+        mu = np.cos(np.radians(p.aerosol_phase_angles_deg))
+        # asymmetry of the column-mean aerosol phase function (scattering-weighted regimes)
+        w = np.stack([p.vertical_optical_depth(a) for a in p.aerosol_scattering_by_regime])  # (R, W)
+        phase = (w[:, None, :] * p.aerosol_phase).sum(0) / np.where(w.sum(0) > 0, w.sum(0), 1.0)
+        from .numerics import trapezoid
+
+        g = -2 * np.pi * trapezoid(phase * mu[:, None], mu, axis=0)
+    out = {
+        "atmosphere": {k: v for k, v in p.metadata.items()},
+        "wavelengths_nm": p.wavelengths_nm.tolist(),
+        "rayleigh_optical_depth": tau_r.tolist(),
+        "ozone_optical_depth": tau_o.tolist(),
+        "aerosol_optical_depth": ext.tolist(),
+        "aerosol_single_scattering_albedo": ssa.tolist(),
+        "aerosol_asymmetry": g.tolist(),
+        "ozone_column_du": p.metadata["ozone_du"],
+        "angstrom_exponent": p.metadata["angstrom_exponent"],
+        "solar_irradiance_W_m2_nm": p.solar_irradiance.tolist(),
+    }
+    if layers:
+        lay = p.layered(n_layers=layers)
+        dz = np.diff(lay.edges_m)[:, None]
+        a_sca = lay.aerosol_scattering * dz
+        a_ext = a_sca + lay.aerosol_absorption * dz
+        with np.errstate(invalid="ignore", divide="ignore"):
+            lay_ssa = np.where(a_ext > 0, a_sca / np.where(a_ext > 0, a_ext, 1.0), 1.0)
+            wr = lay.aerosol_scattering_by_regime  # (R, L, W)
+            lay_phase = (wr[:, :, None, :] * lay.aerosol_phase[:, None, :, :]).sum(0) / np.where(
+                wr.sum(0) > 0, wr.sum(0), 1.0)[:, None, :]
+        out["layers"] = {
+            "edges_m": lay.edges_m.tolist(),
+            "rayleigh_optical_depth": (lay.rayleigh_scattering * dz).tolist(),
+            "ozone_optical_depth": (lay.ozone_absorption * dz).tolist(),
+            "aerosol_optical_depth": a_ext.tolist(),
+            "aerosol_single_scattering_albedo": lay_ssa.tolist(),
+            "aerosol_phase_angles_deg": lay.aerosol_phase_angles_deg.tolist(),
+            "aerosol_phase_function_sr-1": lay_phase.tolist(),
+            "shape_note": "per-layer arrays are [layer][wavelength]; phase is [layer][angle][wavelength]",
+        }
+    return out
+
+
+def _print_profile_table(s: dict) -> None:
+    a = s["atmosphere"]
+    print(f"location {a['location']}  lat {a['latitude_deg']:.2f}  lon {a['longitude_deg']:.2f}  month {a['month']}")
+    print(f"aerosol {a['aerosol']} (stratospheric {a['stratospheric']})  AOD550 {a['aod550']:.4f}  "
+          f"Angstrom {a['angstrom_exponent']:.3f}  ozone {a['ozone_du']:.1f} DU  albedo {a['albedo']:.2f}")
+    print(f"{'nm':>6} {'tau_R':>9} {'tau_O3':>9} {'tau_aer':>9} {'ssa':>6} {'g':>6}")
+    for i, wl in enumerate(s["wavelengths_nm"]):
+        print(f"{wl:6.1f} {s['rayleigh_optical_depth'][i]:9.5f} {s['ozone_optical_depth'][i]:9.5f} "
+              f"{s['aerosol_optical_depth'][i]:9.5f} {s['aerosol_single_scattering_albedo'][i]:6.3f} "
+              f"{s['aerosol_asymmetry'][i]:6.3f}")
+    if "layers" in s:
+        print("layers (edges in km):", ", ".join(f"{e / 1000:.2f}" for e in s["layers"]["edges_m"]))
+
+
+def cmd_profile(args) -> int:
+    atm = atmosphere_from_args(args)
+    prof = atm.optical_profile(args.wavelengths)
+    s = profile_summary(prof, args.layers)
+    if args.json:
+        json.dump(s, sys.stdout, indent=1)
+        print()
+    else:
+        _print_profile_table(s)
+    return 0
+
+
+def cmd_sun(args) -> int:
+    from . import sun
+
+    pos = sun.solar_position(args.lat, args.lon, args.time, refraction=args.refraction)
+    out = {
+        "latitude_deg": args.lat, "longitude_deg": args.lon, "time_utc": args.time,
+        "elevation_deg": float(np.asarray(pos.elevation_deg)), "azimuth_deg": float(np.asarray(pos.azimuth_deg)),
+        "earth_sun_distance_au": float(np.asarray(pos.earth_sun_distance_au)),
+        "refraction": bool(args.refraction),
+    }
+    if args.json:
+        print(json.dumps(out, indent=1))
+    else:
+        print(f"elevation {out['elevation_deg']:.4f} deg, azimuth {out['azimuth_deg']:.4f} deg (clockwise from north), "
+              f"distance {out['earth_sun_distance_au']:.5f} AU")
+    return 0
+
+
+def cmd_presets(args) -> int:
+    from . import aerosols, ground
+    from .atmosphere import locations
+
+    out = {
+        "locations": {k: {kk: v[kk] for kk in ("latitude", "longitude", "aerosol", "surface", "description") if kk in v}
+                      for k, v in locations().items()},
+        "aerosol_types": list(aerosols.aerosol_types()),
+        "aerosol_components": list(aerosols.components()),
+        "surfaces": ground.surfaces(),
+    }
+    if args.json:
+        print(json.dumps(out, indent=1))
+    else:
+        print("locations:")
+        for k, v in out["locations"].items():
+            print(f"  {k:18s} {v['latitude']:7.2f} {v['longitude']:8.2f}  {v['aerosol']:18s} {v['surface']:8s} {v.get('description', '')}")
+        print("aerosol types:", ", ".join(out["aerosol_types"]))
+        print("aerosol components:", ", ".join(out["aerosol_components"]))
+        print("surfaces:", ", ".join(f"{k} ({v:.2f})" for k, v in out["surfaces"].items()))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="skymodel", description="Physically based spectral sky and atmosphere.")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("profile", help="per-wavelength optical depths of an atmosphere")
+    add_atmosphere_arguments(p)
+    p.add_argument("--wavelengths", type=_floats, default=None, help="comma-separated nm (default 380..780 by 5)")
+    p.add_argument("--layers", type=int, default=None, help="also print N piecewise-constant layers")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_profile)
+
+    p = sub.add_parser("sun", help="solar elevation and azimuth for a place and UTC time")
+    p.add_argument("--lat", type=float, required=True, help="latitude, degrees north")
+    p.add_argument("--lon", type=float, required=True, help="longitude, degrees east")
+    p.add_argument("--time", required=True, help="UTC date-time, ISO 8601 (e.g. 2026-06-21T12:00:00Z)")
+    p.add_argument("--refraction", action="store_true", help="apparent elevation (with standard refraction)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_sun)
+
+    p = sub.add_parser("presets", help="list locations, aerosol types, components and surfaces")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_presets)
+
+    for register in _EXTRA_COMMANDS:
+        register(sub)
+    return parser
+
+
+#: Sub-command registrars added by other modules (renderer, benchmarks) — each takes the subparsers object.
+_EXTRA_COMMANDS: list = []
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except SkymodelInputError as exc:
+        print(f"skymodel {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
