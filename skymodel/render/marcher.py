@@ -1,0 +1,358 @@
+"""The deterministic spectral ray marcher: radiance arriving at an observer from any set
+of directions, with single scattering under the Earth's shadow, multiple scattering,
+ground reflection and (for images) the attenuated, limb-darkened sun.
+
+For a view ray from the observer O in direction v (looking along v) the radiance is
+
+    L(O, v) = integral over the ray of T(O, x) [J_1(x, v) + J_ms(x, v)] dt
+              + T(O, G) (albedo / pi) E_ground(G)             (if the ray meets the ground)
+
+* T is the transmittance of the true extinction (Rayleigh + ozone + aerosol);
+* J_1 = E_sun T_sun(x) V(x) [sigma_R(x) p_R(v.s) + sum_r sigma_a,r(x) p_a,r(v.s)] is
+  single scattering of sunlight: E_sun the top-of-atmosphere solar irradiance, T_sun the
+  transmittance toward the sun and V the visible fraction of the solar disc (0 in the
+  Earth's shadow) from :mod:`skymodel.render.sun_transmittance`; v.s is the cosine of
+  the scattering angle, constant along a ray because the sun is a parallel beam;
+* J_ms is the source of light scattered two or more times, from the order-by-order
+  solution of :mod:`skymodel.render.multiple_scattering`, looked up at every point with
+  that point's own altitude, local view angles and sun angle; it is integrated with the
+  delta-M scaled transmittance for consistency with the solver. Because J_ms / E_sun is
+  smooth in wavelength it is solved at a few wavelengths, interpolated, and multiplied
+  by the solar spectrum on the full grid;
+* E_ground = direct sun (E_sun T_sun V cos) + diffuse sky irradiance from the solver.
+
+Single scattering and the ground are evaluated for every direction at every wavelength;
+the multiple-scattering part is gathered on a grid of view directions (zenith angle x
+azimuth from the sun, split at the observer's horizon so the sky/ground edge stays sharp)
+and interpolated, since it varies slowly across the sky.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..errors import SkymodelInputError, check_finite, check_range
+from ..profile import LayeredProfile, OpticalProfile
+from .medium import evaluate_many, factor_medium, march_samples
+from .multiple_scattering import MultipleScatteringField, solve_multiple_scattering
+from .rays import altitude_along, atmosphere_segment, sun_direction
+from .sun_transmittance import SunTransmittance
+
+MAX_OBSERVER_ALTITUDE_M = 120_000.0
+
+
+@dataclass(frozen=True)
+class MarchSettings:
+    """Every accuracy knob of the marcher (the quality presets pick values for them)."""
+
+    view_steps: int = 64  # quadrature nodes along each view ray
+    orders: int | None = None  # highest scattering order; None = until `order_tolerance`
+    max_orders: int = 20
+    order_tolerance: float = 1e-3  # stop when an order adds less than this share
+    ms_wavelength_step_nm: float = 20.0  # spacing of the wavelengths the solver uses
+    table_altitudes: int = 24
+    table_mu: int = 32
+    table_phi: int = 12
+    table_mus: int = 24
+    table_steps: int = 48
+    sun_table_altitudes: int = 96
+    sun_table_x: int = 192
+    sun_table_steps: int = 160
+    exact: bool = False  # True: evaluate every direction (no direction grid)
+    grid_zenith: int = 96  # direction grid: zenith nodes above the horizon (crowded toward it)
+    grid_zenith_ground: int = 32  # ... and below it
+    grid_azimuth: int = 61  # azimuth-from-the-sun nodes over 0..180 degrees
+    sun_exact_deg: float = 8.0  # directions this close to the sun are evaluated exactly
+    delta_m_cutoff_deg: float = 12.0
+    chunk: int = 2048  # directions per batch (memory ~ chunk * view_steps * n_wl * 8 B * 6)
+
+
+@dataclass
+class SkyRadiance:
+    """Spectral radiance (W m^-2 sr^-1 nm^-1) for each direction, split by origin."""
+
+    wavelengths_nm: np.ndarray
+    directions: np.ndarray  # (N, 3)
+    single: np.ndarray  # (N, n_wl) light scattered once in the air
+    multiple: np.ndarray  # (N, n_wl) light scattered twice or more (incl. via the ground)
+    ground: np.ndarray  # (N, n_wl) ground reflection seen directly
+    sun_irradiance: np.ndarray  # (n_wl,) direct solar irradiance at the observer, W m^-2 nm^-1
+    info: dict = field(default_factory=dict)
+
+    @property
+    def radiance(self) -> np.ndarray:
+        return self.single + self.multiple + self.ground
+
+
+def profile_at_wavelengths(profile, wavelengths_nm):
+    """The same medium on another wavelength grid (linear interpolation in wavelength)."""
+    src = profile.wavelengths_nm
+    dst = np.asarray(wavelengths_nm, dtype=float)
+    i = np.clip(np.searchsorted(src, dst, side="right") - 1, 0, max(src.size - 2, 0))
+    if src.size == 1:
+        w = np.ones((1, dst.size))
+    else:
+        f = np.clip((dst - src[i]) / (src[i + 1] - src[i]), 0.0, 1.0)
+        w = np.zeros((src.size, dst.size))
+        w[i, np.arange(dst.size)] += 1 - f
+        w[i + 1, np.arange(dst.size)] += f
+
+    def tr(a):
+        return np.asarray(a) @ w
+
+    return replace(profile, wavelengths_nm=dst, rayleigh_depolarization=tr(profile.rayleigh_depolarization),
+                   aerosol_phase=tr(profile.aerosol_phase), ground_albedo=tr(profile.ground_albedo),
+                   solar_irradiance=tr(profile.solar_irradiance), rayleigh_scattering=tr(profile.rayleigh_scattering),
+                   ozone_absorption=tr(profile.ozone_absorption),
+                   aerosol_scattering_by_regime=tr(profile.aerosol_scattering_by_regime),
+                   aerosol_absorption=tr(profile.aerosol_absorption))
+
+
+def _interp_matrix(src, dst):
+    """Matrix W (n_src, n_dst) of linear interpolation along the last axis."""
+    src = np.asarray(src, float)
+    dst = np.asarray(dst, float)
+    w = np.zeros((src.size, dst.size))
+    if src.size == 1:
+        w[0] = 1.0
+        return w
+    i = np.clip(np.searchsorted(src, dst, side="right") - 1, 0, src.size - 2)
+    f = np.clip((dst - src[i]) / (src[i + 1] - src[i]), 0.0, 1.0)
+    w[i, np.arange(dst.size)] += 1 - f
+    w[i + 1, np.arange(dst.size)] += f
+    return w
+
+
+def solver_wavelengths(wavelengths_nm, step_nm: float) -> np.ndarray:
+    """Wavelengths for the multiple-scattering solver: about every ``step_nm`` across
+    the grid, always including its ends, never more than the grid itself."""
+    wl = np.asarray(wavelengths_nm, float)
+    if wl.size <= 2 or step_nm <= 0:
+        return wl
+    n = int(np.ceil((wl.max() - wl.min()) / step_nm)) + 1
+    if n >= wl.size:
+        return wl
+    return np.linspace(wl.min(), wl.max(), n)
+
+
+class SkyMarcher:
+    """Everything that depends on the medium and the sun but not on the view directions:
+    build once, then ask for radiance in as many directions as needed."""
+
+    def __init__(self, profile, sun_elevation_deg: float, sun_azimuth_deg: float = 180.0,
+                 observer_altitude_m: float = 0.0, settings: MarchSettings | None = None, progress=None):
+        if not isinstance(profile, (OpticalProfile, LayeredProfile)):
+            raise TypeError("profile must be an OpticalProfile or LayeredProfile")
+        self.settings = s = settings or MarchSettings()
+        self.profile = profile
+        self.sun_elevation_deg = check_range("sun_elevation", sun_elevation_deg, -90.0, 90.0, "degrees")
+        self.sun_azimuth_deg = float(sun_azimuth_deg) % 360.0
+        self.observer_altitude_m = check_range("observer_altitude", observer_altitude_m, 0.0,
+                                               MAX_OBSERVER_ALTITUDE_M, "metres")
+        t_start = time.perf_counter()
+        self.R = profile.planet_radius_m
+        self.top = profile.top_altitude_m
+        self.sun = sun_direction(self.sun_elevation_deg, self.sun_azimuth_deg)
+        self.origin = np.array([0.0, 0.0, self.R + self.observer_altitude_m])
+        self.medium = factor_medium(profile, s.delta_m_cutoff_deg)
+        # multiple scattering runs at the solver wavelengths, per unit solar irradiance
+        wl_ms = solver_wavelengths(profile.wavelengths_nm, s.ms_wavelength_step_nm)
+        prof_ms = profile_at_wavelengths(profile, wl_ms)
+        prof_ms = replace(prof_ms, solar_irradiance=np.ones_like(wl_ms))
+        self.medium_ms = factor_medium(prof_ms, s.delta_m_cutoff_deg)
+        # one table serves both: medium 0 = true extinction on the full grid,
+        # medium 1 = delta-M scaled extinction at the solver wavelengths
+        self.sun_table = SunTransmittance([self.medium.extinction, self.medium_ms.extinction_scaled], self.R,
+                                          self.top, s.sun_table_altitudes, s.sun_table_x, s.sun_table_steps)
+        self.timings = {"tables_s": time.perf_counter() - t_start}
+        t1 = time.perf_counter()
+        self.field: MultipleScatteringField = solve_multiple_scattering(
+            prof_ms, self.medium_ms, self.sun_table, n_altitudes=s.table_altitudes, n_mu=s.table_mu,
+            n_phi=s.table_phi, n_mus=s.table_mus, n_steps=s.table_steps, orders=s.orders,
+            max_orders=s.max_orders, tolerance=s.order_tolerance, progress=progress)
+        self.to_full = _interp_matrix(wl_ms, profile.wavelengths_nm)
+        self.timings["multiple_scattering_s"] = time.perf_counter() - t1
+        t2 = time.perf_counter()
+        self._grid = None if s.exact else self._build_grid()
+        self.timings["direction_grid_s"] = time.perf_counter() - t2
+
+    # ---------------------------------------------------------------- helpers
+    def _samples(self, d):
+        p = np.broadcast_to(self.origin, d.shape)
+        t0, t1, hits = atmosphere_segment(p, d, self.R, self.R + self.top)
+        t, dt = march_samples(p, d, t0, t1, self.settings.view_steps, self.R)
+        h = altitude_along(p, d, t, self.R)
+        x = p[:, None, :] + t[..., None] * d[:, None, :]
+        r = np.linalg.norm(x, axis=-1)
+        up = x / r[..., None]
+        return t, dt, np.maximum(h, 0.0), up, hits, t1
+
+    def _relative_azimuth(self, up, v):
+        """Azimuth (rad, 0..pi) between v and the sun around the local vertical ``up``."""
+        mu = np.einsum("...i,i->...", up, v) if v.ndim == 1 else np.einsum("...i,...i->...", up, v)
+        mus = up @ self.sun
+        vs = (v @ self.sun) if v.ndim == 1 else np.einsum("...i,i->...", v, self.sun)
+        den = np.sqrt(np.clip((1 - mu * mu) * (1 - mus * mus), 0.0, None))
+        c = np.where(den > 1e-12, (vs - mu * mus) / np.where(den > 1e-12, den, 1.0), 1.0)
+        return mu, mus, np.arccos(np.clip(c, -1.0, 1.0))
+
+    def horizon_zenith_rad(self) -> float:
+        """Zenith angle of the observer's geometric horizon (> pi/2 above the ground)."""
+        return np.pi - np.arcsin(min(1.0, self.R / (self.R + self.observer_altitude_m)))
+
+    # ---------------------------------------------------------------- direction grid
+    def _grid_axes(self):
+        """Zenith nodes on each side of the observer's horizon (crowded toward it) and
+        azimuth-from-the-sun nodes in [0, pi]."""
+        s = self.settings
+        th = self.horizon_zenith_rad()
+        eps = 1e-7
+        u = np.linspace(0.0, 1.0, s.grid_zenith)
+        sky = (th - eps) * (1.0 - (1.0 - u) ** 2)
+        ug = np.linspace(0.0, 1.0, s.grid_zenith_ground)
+        ground = th + eps + (np.pi - th - eps) * ug**2
+        az = np.linspace(0.0, np.pi, s.grid_azimuth)
+        return sky, ground, az
+
+    def _dir_from_relative(self, zenith, rel_az):
+        """Directions in the observer frame at zenith angle and azimuth relative to the sun."""
+        az = np.radians(self.sun_azimuth_deg) + rel_az
+        return np.stack([np.sin(zenith) * np.sin(az), np.sin(zenith) * np.cos(az), np.cos(zenith)], axis=-1)
+
+    def _build_grid(self):
+        sky, ground, az = self._grid_axes()
+        images = []
+        for zen in (sky, ground):
+            zz, aa = np.meshgrid(zen, az, indexing="ij")
+            d = self._dir_from_relative(zz.ravel(), aa.ravel())
+            parts = [self._exact(d[i:i + self.settings.chunk]) for i in range(0, d.shape[0], self.settings.chunk)]
+            images.append(tuple(np.concatenate(c).reshape(zen.size, az.size, -1) for c in zip(*parts)))
+        return sky, ground, az, images
+
+    def _from_grid(self, d):
+        sky, ground, az, images = self._grid
+        zen = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
+        sun_h = self.sun[:2]
+        dh = d[:, :2]
+        nrm = np.linalg.norm(dh, axis=1) * np.linalg.norm(sun_h)
+        c = np.where(nrm > 1e-12, (dh @ sun_h) / np.where(nrm > 1e-12, nrm, 1.0), 1.0)
+        rel = np.arccos(np.clip(c, -1.0, 1.0))
+        th = self.horizon_zenith_rad()
+        n_comp = len(images[0])
+        out = [np.empty((d.shape[0], images[0][k].shape[-1])) for k in range(n_comp)]
+        for mask, axis, imgs in ((zen < th, sky, images[0]), (zen >= th, ground, images[1])):
+            if not np.any(mask):
+                continue
+            z = np.clip(zen[mask], axis[0], axis[-1])
+            i = np.clip(np.searchsorted(axis, z, side="right") - 1, 0, axis.size - 2)
+            fz = ((z - axis[i]) / (axis[i + 1] - axis[i]))[:, None]
+            a = rel[mask]
+            j = np.clip(np.searchsorted(az, a, side="right") - 1, 0, az.size - 2)
+            fa = ((a - az[j]) / (az[j + 1] - az[j]))[:, None]
+            for k, img in enumerate(imgs):
+                out[k][mask] = ((img[i, j] * (1 - fa) + img[i, j + 1] * fa) * (1 - fz)
+                                + (img[i + 1, j] * (1 - fa) + img[i + 1, j + 1] * fa) * fz)
+        return out
+
+    def _gather_ms(self, d, t, dt, h, up):
+        """Integral of T* J_ms along view rays at the solver wavelengths (per unit E_sun)."""
+        mu = np.einsum("nsi,ni->ns", up, d)
+        mus = up @ self.sun
+        vs = d @ self.sun
+        den = np.sqrt(np.clip((1 - mu * mu) * (1 - mus * mus), 0.0, None))
+        cphi = np.where(den > 1e-12, (vs[:, None] - mu * mus) / np.where(den > 1e-12, den, 1.0), 1.0)
+        phi = np.arccos(np.clip(cphi, -1.0, 1.0))
+        ext = self.medium_ms.extinction_scaled.at(h)
+        tau_mid = np.cumsum(ext * dt[..., None], axis=1) - 0.5 * ext * dt[..., None]
+        src = self.field.source_at(h, mu, phi, mus)
+        return (np.exp(-tau_mid) * src * dt[..., None]).sum(axis=1)
+
+    # ---------------------------------------------------------------- public
+    def direct_sun_irradiance(self) -> np.ndarray:
+        """Solar irradiance (W m^-2 nm^-1) on a surface facing the sun at the observer,
+        after extinction, times the visible fraction of the disc."""
+        prof = self.profile
+        if self.observer_altitude_m >= self.top:
+            d = self.sun[None, :]
+            p = self.origin[None, :]
+            _, _, hits = atmosphere_segment(p, d, self.R, self.R + self.top)
+            t, dt, h, _, hits, _ = self._samples(d)
+            tau = (self.medium.extinction.at(h) * dt[..., None]).sum(axis=1)[0]
+            blocked = bool(hits[0])
+            return np.zeros_like(prof.solar_irradiance) if blocked else prof.solar_irradiance * np.exp(-tau)
+        t_sun = self.sun_table.transmittance(np.array([self.observer_altitude_m]), np.array([self.sun[2]]))[0]
+        return prof.solar_irradiance * t_sun
+
+    def radiance(self, directions) -> SkyRadiance:
+        """Sky radiance (without the solar disc) looking along ``directions`` (N, 3)."""
+        d = np.asarray(directions, dtype=float).reshape(-1, 3)
+        nrm = np.linalg.norm(d, axis=1, keepdims=True)
+        if np.any(~np.isfinite(d)) or np.any(nrm < 1e-12):
+            raise SkymodelInputError("directions", "non-finite or zero vectors", "unit vectors (N, 3)")
+        d = d / nrm
+        prof = self.profile
+        t_start = time.perf_counter()
+        if self._grid is None:
+            parts = [self._exact(d[i:i + self.settings.chunk]) for i in range(0, d.shape[0], self.settings.chunk)]
+            single, multiple, ground = (np.concatenate(c) for c in zip(*parts))
+        else:
+            single, multiple, ground = self._from_grid(d)
+            near = np.nonzero(d @ self.sun > np.cos(np.radians(self.settings.sun_exact_deg)))[0]
+            if near.size:
+                single[near], multiple[near], ground[near] = self._exact(d[near])
+        info = {"orders": self.field.orders, "order_contributions": list(self.field.order_contributions),
+                "timings": dict(self.timings, directions_s=time.perf_counter() - t_start),
+                "settings": self.settings}
+        res = SkyRadiance(prof.wavelengths_nm, d, single, multiple, ground, self.direct_sun_irradiance(), info)
+        check_finite("radiance", res.radiance)
+        return res
+
+    def _exact(self, d):
+        """(single, multiple, ground) radiance for directions d (N, 3), every one
+        marched: single scattering and direct-sun ground light at every wavelength, the
+        multiple-scattering source gathered at the solver wavelengths."""
+        prof = self.profile
+        med = self.medium
+        t, dt, h, up, hits, t1 = self._samples(d)
+        lrs = [med.extinction, med.rayleigh] + [lr for lr in med.aerosol if np.any(lr.weights)]
+        ext, ray, *aers = evaluate_many(lrs, h)  # each (C, S, W)
+        step_tau = ext * dt[..., None]
+        tau_mid = np.cumsum(step_tau, axis=1) - 0.5 * step_tau
+        trans = np.exp(-tau_mid)
+        mus = up @ self.sun  # (C, S)
+        t_sun = self.sun_table.transmittance(h, mus)  # (C, S, W) includes the shadow
+        cos_theta = d @ self.sun  # (C,)
+        scat = ray * prof.rayleigh_phase(cos_theta)[:, None, :]
+        pa = prof.aerosol_phase_at(cos_theta)  # (R, C, W)
+        regimes = [reg for reg, lr in enumerate(med.aerosol) if np.any(lr.weights)]
+        for reg, sig in zip(regimes, aers):
+            scat = scat + sig * pa[reg][:, None, :]
+        single = prof.solar_irradiance * (trans * t_sun * scat * dt[..., None]).sum(axis=1)
+        # ground seen directly: direct sun and (from the solver) diffuse sky light
+        ground = np.zeros_like(single)
+        ms_ground = np.zeros_like(single)
+        if np.any(hits):
+            gi = np.nonzero(hits)[0]
+            p_g = self.origin + t1[gi, None] * d[gi]
+            n_g = p_g / np.linalg.norm(p_g, axis=1, keepdims=True)
+            mus_g = n_g @ self.sun
+            t_ground = np.exp(-step_tau[gi].sum(axis=1))  # (G, W)
+            e_dir = prof.solar_irradiance * self.sun_table.transmittance(np.zeros(gi.size), mus_g) * np.maximum(
+                mus_g, 0.0)[:, None]
+            ground[gi] = t_ground * prof.ground_albedo / np.pi * e_dir
+            if self.field.orders > 1 or self.field.ground_diffuse_irradiance.any():
+                e_diff = (self.field.ground_irradiance_at(mus_g) @ self.to_full) * prof.solar_irradiance
+                ms_ground[gi] = t_ground * prof.ground_albedo / np.pi * e_diff
+        multiple = ms_ground
+        if self.field.orders > 1:
+            multiple = multiple + (self._gather_ms(d, t, dt, h, up) @ self.to_full) * prof.solar_irradiance
+        return single, multiple, ground
+
+
+def render_directions(profile, directions, sun_elevation_deg: float, sun_azimuth_deg: float = 180.0,
+                      observer_altitude_m: float = 0.0, settings: MarchSettings | None = None) -> SkyRadiance:
+    """Convenience: build a :class:`SkyMarcher` and return the radiance for ``directions``."""
+    return SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings).radiance(directions)

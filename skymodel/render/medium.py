@@ -1,0 +1,173 @@
+"""Fast evaluation of the medium along many rays.
+
+Every coefficient of the atmosphere is a matrix A (altitude x wavelength) that is very
+nearly of low rank: Rayleigh scattering is the air density times a cross section,
+ozone absorption the ozone density times its cross section, each aerosol regime a
+number-density profile times a cross section. We factor A = B W once with an SVD
+(B: altitude basis functions, W: their spectra), keeping every singular value above
+1e-12 of the largest, so the factorisation is exact to round-off. Along rays we then
+interpolate k << n_wavelength basis functions and multiply by W at the end: the
+optical depth of a path is (integral of B along the path) @ W.
+
+The altitude dependence is interpolated as the profile itself is: linearly between
+the nodes of an :class:`~skymodel.profile.OpticalProfile`, piecewise-constant inside the
+layers of a :class:`~skymodel.profile.LayeredProfile`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..profile import LayeredProfile, OpticalProfile
+
+
+@dataclass(frozen=True)
+class LowRank:
+    """``A(h, lambda) = basis(h) @ weights`` with basis on altitude nodes."""
+
+    nodes_m: np.ndarray  # (n_nodes,) altitudes (smooth) or layer edges (layered)
+    basis: np.ndarray  # (n_nodes, k) smooth, or (n_layers, k) layered
+    weights: np.ndarray  # (k, n_wl)
+    layered: bool
+    top_m: float
+
+    @classmethod
+    def from_matrix(cls, nodes_m, matrix, layered: bool, top_m: float, rtol: float = 1e-12) -> "LowRank":
+        a = np.asarray(matrix, dtype=float)
+        if not np.any(a):
+            return cls(np.asarray(nodes_m, float), np.zeros((a.shape[0], 1)), np.zeros((1, a.shape[1])), layered, top_m)
+        u, s, vt = np.linalg.svd(a, full_matrices=False)
+        k = max(1, int(np.count_nonzero(s > rtol * s[0])))
+        return cls(np.asarray(nodes_m, float), u[:, :k] * s[:k], vt[:k], layered, top_m)
+
+    @property
+    def rank(self) -> int:
+        return int(self.basis.shape[1])
+
+    def basis_at(self, altitudes_m) -> np.ndarray:
+        """Basis functions at altitudes (any shape) -> shape + (k,); zero above the top."""
+        h = np.asarray(altitudes_m, dtype=float)
+        nodes = self.nodes_m
+        if self.layered:
+            idx = np.clip(np.searchsorted(nodes, h, side="right") - 1, 0, nodes.size - 2)
+            out = self.basis[idx]
+        else:
+            hc = np.clip(h, nodes[0], nodes[-1])
+            idx = np.clip(np.searchsorted(nodes, hc, side="right") - 1, 0, nodes.size - 2)
+            t = ((hc - nodes[idx]) / (nodes[idx + 1] - nodes[idx]))[..., None]
+            out = self.basis[idx] * (1.0 - t) + self.basis[idx + 1] * t
+        return np.where((h <= self.top_m)[..., None], out, 0.0)
+
+    def at(self, altitudes_m) -> np.ndarray:
+        """The full coefficient at altitudes -> shape + (n_wl,)."""
+        return self.basis_at(altitudes_m) @ self.weights
+
+
+def evaluate_many(media, altitudes_m) -> list:
+    """Evaluate several :class:`LowRank` coefficients sharing the same altitude nodes at
+    once: one interpolation of the stacked basis, then one small product per medium."""
+    first = media[0]
+    stacked = LowRank(first.nodes_m, np.concatenate([m.basis for m in media], axis=1),
+                      np.zeros((sum(m.rank for m in media), 1)), first.layered, first.top_m)
+    values = stacked.basis_at(altitudes_m)
+    out, k = [], 0
+    for m in media:
+        out.append(values[..., k:k + m.rank] @ m.weights)
+        k += m.rank
+    return out
+
+
+@dataclass(frozen=True)
+class FactoredMedium:
+    """The medium of a profile in low-rank form, plus delta-M scaled quantities.
+
+    ``extinction`` / ``rayleigh`` / ``aerosol[r]`` are true coefficients (m^-1);
+    ``extinction_scaled`` and ``aerosol_scaled[r]`` remove the truncated forward peak
+    fraction ``forward_fraction[r]`` (n_wl,) of aerosol scattering (delta-M, Wiscombe 1977),
+    used only inside the multiple-scattering solution.
+    """
+
+    extinction: LowRank
+    extinction_scaled: LowRank
+    rayleigh: LowRank
+    aerosol: tuple  # of LowRank, one per regime
+    aerosol_scaled: tuple
+    forward_fraction: np.ndarray  # (n_regime, n_wl)
+    truncated_phase: np.ndarray  # (n_regime, n_angle, n_wl), normalised over 4 pi
+
+
+def truncate_forward_peak(angles_deg, phase, cutoff_deg: float):
+    """Delta-M style truncation of tabulated phase functions.
+
+    p*(theta) = min(p(theta), p(cutoff)) inside the cone theta < cutoff, then
+    renormalised; the removed fraction f = 1 - integral(min(p, p(cutoff))) is returned.
+    ``phase`` (R, A, W) -> (f (R, W), p* (R, A, W))."""
+    from ..numerics import trapezoid
+
+    ang = np.asarray(angles_deg, dtype=float)
+    p = np.asarray(phase, dtype=float)
+    j = int(np.searchsorted(ang, cutoff_deg))
+    j = min(max(j, 1), ang.size - 1)
+    cap = p[:, j:j + 1, :]
+    clipped = np.where(ang[None, :, None] < ang[j], np.minimum(p, cap), p)
+    mu = np.cos(np.radians(ang))
+    total = -2.0 * np.pi * trapezoid(clipped, mu, axis=1)  # mu decreasing with angle
+    norm = -2.0 * np.pi * trapezoid(p, mu, axis=1)
+    f = np.clip(1.0 - total / np.where(norm > 0, norm, 1.0), 0.0, 1.0)
+    return f, clipped / np.where(total > 0, total, 1.0)[:, None, :]
+
+
+def factor_medium(profile, cutoff_deg: float = 12.0) -> FactoredMedium:
+    """Factor every coefficient of ``profile`` (smooth or layered) for fast ray marching."""
+    if isinstance(profile, LayeredProfile):
+        nodes, layered = profile.edges_m, True
+    elif isinstance(profile, OpticalProfile):
+        nodes, layered = profile.altitudes_m, False
+    else:
+        raise TypeError("profile must be an OpticalProfile or a LayeredProfile")
+    top = float(profile.top_altitude_m)
+    f, p_star = truncate_forward_peak(profile.aerosol_phase_angles_deg, profile.aerosol_phase, cutoff_deg)
+    aer = profile.aerosol_scattering_by_regime
+    aer_scaled = aer * (1.0 - f[:, None, :])
+    ext = profile.extinction
+    ext_scaled = ext - (aer - aer_scaled).sum(axis=0)
+
+    def lr(a):
+        return LowRank.from_matrix(nodes, a, layered, top)
+
+    return FactoredMedium(
+        extinction=lr(ext), extinction_scaled=lr(ext_scaled), rayleigh=lr(profile.rayleigh_scattering),
+        aerosol=tuple(lr(a) for a in aer), aerosol_scaled=tuple(lr(a) for a in aer_scaled),
+        forward_fraction=f, truncated_phase=p_star,
+    )
+
+
+def march_samples(p, d, t0, t1, n: int, ground_radius: float):
+    """Midpoint quadrature nodes along ray segments [t0, t1] of rays p + t d.
+
+    Samples crowd quadratically toward the lowest point of the segment (the perigee when
+    it lies inside the segment, else the lower end), where the air is densest. With
+    f = (t_p - t0) / (t1 - t0) the fraction of the segment before the perigee t_p, a
+    uniform u in [0, 1] maps to t_p - (t_p - t0)(1 - u/f)^2 for u < f and to
+    t_p + (t1 - t_p)((u - f)/(1 - f))^2 beyond, so each side gets samples in proportion
+    to its length. Returns (t, dt), each shaped (..., n).
+    """
+    p = np.asarray(p, dtype=float)
+    d = np.asarray(d, dtype=float)
+    t0 = np.asarray(t0, dtype=float)[..., None]
+    t1 = np.asarray(t1, dtype=float)[..., None]
+    tp = np.clip(-np.einsum("...i,...i->...", p, d)[..., None], t0, t1)
+    length = np.maximum(t1 - t0, 1e-300)
+    f = np.clip((tp - t0) / length, 0.0, 1.0)
+    u = np.linspace(0.0, 1.0, n + 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        before = tp - (tp - t0) * (1.0 - np.where(f > 0, u / f, 1.0)) ** 2
+        after = tp + (t1 - tp) * np.where(f < 1, (u - f) / (1.0 - f), 0.0) ** 2
+    edges = np.where(u < f, before, after)
+    edges[..., 0] = t0[..., 0]
+    edges[..., -1] = t1[..., 0]
+    t = 0.5 * (edges[..., 1:] + edges[..., :-1])
+    dt = np.diff(edges, axis=-1)
+    return t, dt

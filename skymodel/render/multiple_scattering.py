@@ -1,0 +1,273 @@
+"""Multiple scattering, order by order, on a grid of (altitude, direction, sun angle).
+
+The radiance field of a spherically symmetric atmosphere lit by a parallel beam depends
+on the altitude h of a point, the cosine mu_s of the sun's zenith angle there, and the
+viewing direction (cosine mu of its zenith angle, azimuth phi from the sun's vertical
+plane, phi in [0, pi] by symmetry). We solve for the light scattered twice or more on
+that 4-D grid, at a reduced set of wavelengths (the multiple-scattering spectrum is
+smooth), in the *independent column* approximation: inside the solver a ray keeps the
+mu_s and phi of the point it starts from (as in a plane-parallel atmosphere) while its
+path, altitude and local zenith angle follow the true spherical geometry, so horizontal
+rays stay finite and rays that meet the ground stop there. The sun light that feeds
+the first order is attenuated along the true spherical path, so the Earth's shadow is
+in the source. The final image integrates the resulting source J_ms along each view ray
+with every point's own mu_s (:mod:`skymodel.render.marcher`), which restores the
+spherical geometry where it is seen.
+
+Each order is two matrix products per wavelength:
+
+* gather: L_n = M J_n + G Lg_n, where M (rays x nodes) holds the quadrature weights of
+  the integral of the source along each grid ray, times the transmittance, spread onto
+  the grid nodes by linear interpolation, and G the transmittance to the ground for rays
+  that meet it (Lg: light leaving the Lambertian ground);
+* scatter: J_{n+1} = sum over species of sigma_s(h) P L_n, where P holds the phase
+  function between every pair of grid directions times the quadrature weight of the
+  incoming direction (double Gauss-Legendre in mu, midpoint in phi).
+
+Aerosol phase functions have forward peaks far narrower than any practical direction
+grid; we truncate the peak inside a cone (delta-M, Wiscombe 1977) and treat the cut
+fraction f as unscattered (sigma_s* = (1 - f) sigma_s) inside the solver. The single
+scattering seen in the image is computed exactly with the full phase function and the
+true extinction (the TMS correction of Nakajima & Tanaka 1988), so the truncation only
+touches the multiple-scattering part.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry import altitude_grid
+from .medium import FactoredMedium, march_samples
+from .rays import altitude_along
+from .sun_transmittance import SunTransmittance
+
+
+def sun_elevation_nodes(n: int, lowest_deg: float = -20.0) -> np.ndarray:
+    """Sun elevation nodes (degrees) from ``lowest_deg`` to 90, crowded near 0 where
+    twilight changes fastest: elevation = 90 sign(u) u^2 for u evenly spaced."""
+    u = np.linspace(-np.sqrt(-lowest_deg / 90.0), 1.0, n)
+    return 90.0 * np.sign(u) * u * u
+
+
+@dataclass
+class MultipleScatteringField:
+    """The solved field: source J_ms (scattered >= 2 times, per metre) and the diffuse
+    irradiance on the ground, on the grid, at ``wavelengths_nm``."""
+
+    wavelengths_nm: np.ndarray
+    h_nodes: np.ndarray
+    mu_nodes: np.ndarray
+    phi_nodes: np.ndarray
+    mus_nodes: np.ndarray
+    source: np.ndarray  # (n_wl, n_mu, n_phi, n_h, n_mus)  W m^-2 sr^-1 nm^-1 per metre
+    ground_diffuse_irradiance: np.ndarray  # (n_mus, n_wl) W m^-2 nm^-1
+    orders: int
+    order_contributions: list  # relative size of each order's source (diagnostic)
+
+    def source_at(self, h, mu, phi, mu_s) -> np.ndarray:
+        """Quadrilinear interpolation of J_ms at points (any common shape) -> shape + (n_wl,)."""
+        def axis(nodes, x):
+            x = np.clip(x, nodes[0], nodes[-1])
+            i = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, nodes.size - 2)
+            f = (x - nodes[i]) / (nodes[i + 1] - nodes[i])
+            return i, f
+
+        ih, fh = axis(self.h_nodes, np.asarray(h, float))
+        im, fm = axis(self.mu_nodes, np.asarray(mu, float))
+        ip, fp = axis(self.phi_nodes, np.asarray(phi, float))
+        isn, fs = axis(self.mus_nodes, np.asarray(mu_s, float))
+        src = self.source
+        out = 0.0
+        for dm, wm in ((0, 1 - fm), (1, fm)):
+            for dp, wp in ((0, 1 - fp), (1, fp)):
+                for dh, wh in ((0, 1 - fh), (1, fh)):
+                    for ds, ws in ((0, 1 - fs), (1, fs)):
+                        w = (wm * wp * wh * ws)[..., None]
+                        out = out + w * np.moveaxis(src[:, im + dm, ip + dp, ih + dh, isn + ds], 0, -1)
+        return out
+
+    def ground_irradiance_at(self, mu_s) -> np.ndarray:
+        """Diffuse (sky) irradiance on the ground where the sun's zenith cosine is mu_s."""
+        x = np.clip(np.asarray(mu_s, float), self.mus_nodes[0], self.mus_nodes[-1])
+        out = np.empty(x.shape + (self.wavelengths_nm.size,))
+        for k in range(self.wavelengths_nm.size):
+            out[..., k] = np.interp(x, self.mus_nodes, self.ground_diffuse_irradiance[:, k])
+        return out
+
+
+def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTransmittance, *,
+                              n_altitudes: int = 24, n_mu: int = 32, n_phi: int = 12, n_mus: int = 24,
+                              n_steps: int = 48, orders: int | None = None, max_orders: int = 20,
+                              tolerance: float = 1e-3, progress=None) -> MultipleScatteringField:
+    """Solve orders 2..N of scattering for ``profile`` (already at the solver's
+    wavelengths). ``sun_table`` must hold the delta-M scaled extinction as medium 1.
+    ``orders`` fixes the highest order (1 = single scattering only, no field); otherwise
+    orders are added until the last one adds less than ``tolerance`` of the total."""
+    wl = profile.wavelengths_nm
+    n_wl = wl.size
+    R = profile.planet_radius_m
+    top = profile.top_altitude_m
+    if n_mu % 2:
+        raise ValueError("n_mu must be even (double Gauss-Legendre)")
+    h_nodes = altitude_grid(n_altitudes, top * (1 - 1e-9), stretch=3.0)
+    x, w = np.polynomial.legendre.leggauss(n_mu // 2)
+    mu_nodes = np.concatenate([-0.5 * (x[::-1] + 1.0), 0.5 * (x + 1.0)])  # ascending
+    mu_w = np.concatenate([0.5 * w[::-1], 0.5 * w])
+    phi_nodes = (np.arange(n_phi) + 0.5) * np.pi / n_phi
+    phi_w = np.pi / n_phi  # folded: integral over [0, 2 pi) = sum over [0, pi) of g(phi) + g(-phi)
+    mus_nodes = np.sin(np.radians(sun_elevation_nodes(n_mus)))
+    n_dir = n_mu * n_phi
+
+    empty = MultipleScatteringField(wl, h_nodes, mu_nodes, phi_nodes, mus_nodes,
+                                    np.zeros((n_wl, n_mu, n_phi, n_altitudes, n_mus)), np.zeros((n_mus, n_wl)), 1, [])
+    if orders is not None and orders <= 1:
+        return empty
+
+    # ---------------------------------------------------------------- geometry of grid rays
+    # directions as (mu, phi) pairs, index = j * n_phi + l
+    mu_d = np.repeat(mu_nodes, n_phi)
+    phi_d = np.tile(phi_nodes, n_mu)
+    sin_d = np.sqrt(1.0 - mu_d**2)
+
+    # transport matrix M (n_wl, n_h*n_mu rays, n_h*n_mu nodes) and ground vector G
+    hh, mm = np.meshgrid(h_nodes, mu_nodes, indexing="ij")  # ray (i, j) -> index i * n_mu + j
+    r0 = R + hh.ravel()
+    mu0 = mm.ravel()
+    p = np.stack([np.zeros_like(r0), np.zeros_like(r0), r0], axis=-1)
+    d = np.stack([np.sqrt(1.0 - mu0**2), np.zeros_like(r0), mu0], axis=-1)
+    from .rays import atmosphere_segment
+
+    t0, t1, hits = atmosphere_segment(p, d, R, R + top)
+    t, dt = march_samples(p, d, t0, t1, n_steps, R)
+    h = np.clip(altitude_along(p, d, t, R), 0.0, None)
+    r = R + h
+    mu_t = np.clip((r0[:, None] * mu0[:, None] + t) / r, -1.0, 1.0)
+    ext = medium.extinction_scaled.at(h)  # (rays, steps, n_wl)
+    tau_mid = np.cumsum(ext * dt[..., None], axis=1) - 0.5 * ext * dt[..., None]
+    trans = np.exp(-tau_mid)
+    ground_t = np.where(hits[:, None], np.exp(-(ext * dt[..., None]).sum(axis=1)), 0.0)  # (rays, n_wl)
+
+    def lin(nodes, xv):
+        xv = np.clip(xv, nodes[0], nodes[-1])
+        i = np.clip(np.searchsorted(nodes, xv, side="right") - 1, 0, nodes.size - 2)
+        return i, (xv - nodes[i]) / (nodes[i + 1] - nodes[i])
+
+    ih, fh = lin(h_nodes, h)
+    im, fm = lin(mu_nodes, mu_t)
+    n_rays = r0.size
+    ray_idx = np.broadcast_to(np.arange(n_rays)[:, None], h.shape)
+    M = np.zeros((n_rays, n_rays, n_wl))
+    base = dt[..., None] * trans
+    for dh_, wh in ((0, 1 - fh), (1, fh)):
+        for dm_, wm in ((0, 1 - fm), (1, fm)):
+            node = (ih + dh_) * n_mu + (im + dm_)
+            np.add.at(M, (ray_idx.ravel(), node.ravel()), (base * (wh * wm)[..., None]).reshape(-1, n_wl))
+    M = np.ascontiguousarray(np.moveaxis(M, -1, 0), dtype=np.float32)  # (n_wl, rays, nodes)
+    G = ground_t.T.astype(np.float32)  # (n_wl, rays)
+
+    # ---------------------------------------------------------------- phase matrices
+    cos_plus = (mu_d[:, None] * mu_d[None, :] + sin_d[:, None] * sin_d[None, :] * np.cos(phi_d[:, None] - phi_d[None, :]))
+    cos_minus = (mu_d[:, None] * mu_d[None, :] + sin_d[:, None] * sin_d[None, :] * np.cos(phi_d[:, None] + phi_d[None, :]))
+    wq = (np.repeat(mu_w, n_phi) * phi_w)[None, :]  # weight of the incoming direction
+
+    def phase_matrix(pfun):
+        pm = (pfun(cos_plus) + pfun(cos_minus)) * wq[..., None]  # (n_dir, n_dir, n_wl)
+        pm = pm / pm.sum(axis=1, keepdims=True)  # exact normalisation on the grid
+        return np.ascontiguousarray(np.moveaxis(pm, -1, 0), dtype=np.float32)  # (n_wl, n_dir, n_dir)
+
+    from ..profile import _MediumBase
+
+    def aerosol_phase_fn(reg):
+        ang = profile.aerosol_phase_angles_deg
+        tab = medium.truncated_phase[reg]
+
+        def f(c):
+            theta = np.degrees(np.arccos(np.clip(c, -1, 1)))
+            i = np.clip(np.searchsorted(ang, theta, side="right") - 1, 0, ang.size - 2)
+            tt = ((theta - ang[i]) / (ang[i + 1] - ang[i]))[..., None]
+            return tab[i] * (1 - tt) + tab[i + 1] * tt
+        return f
+
+    species = [(phase_matrix(profile.rayleigh_phase), medium.rayleigh.at(h_nodes).astype(np.float32))]  # sigma (n_h, n_wl)
+    n_reg = len(medium.aerosol_scaled)
+    for reg in range(n_reg):
+        sig = medium.aerosol_scaled[reg].at(h_nodes)
+        if np.any(sig > 0):
+            species.append((phase_matrix(aerosol_phase_fn(reg)), sig.astype(np.float32)))
+
+    # ---------------------------------------------------------------- first order source
+    e_sun = profile.solar_irradiance  # (n_wl,)
+    hs, ms = np.meshgrid(h_nodes, mus_nodes, indexing="ij")  # (n_h, n_mus)
+    t_sun = sun_table.transmittance(hs, ms, which=1)  # (n_h, n_mus, n_wl) delta-M scaled, solver wavelengths
+    sin_s = np.sqrt(1.0 - mus_nodes**2)
+    cos_sun = mu_d[:, None] * mus_nodes[None, :] + sin_d[:, None] * sin_s[None, :] * np.cos(phi_d)[:, None]  # (n_dir, n_mus)
+    j1 = np.zeros((n_wl, n_dir, n_altitudes, n_mus))
+    ray_p = profile.rayleigh_phase(cos_sun)  # (n_dir, n_mus, n_wl)
+    j1 += np.einsum("dmw,hw,hmw->wdhm", ray_p, medium.rayleigh.at(h_nodes), t_sun)
+    for reg in range(n_reg):
+        sig = medium.aerosol_scaled[reg].at(h_nodes)
+        if np.any(sig > 0):
+            j1 += np.einsum("dmw,hw,hmw->wdhm", aerosol_phase_fn(reg)(cos_sun), sig, t_sun)
+    j1 *= e_sun[:, None, None, None]
+    j1 = j1.astype(np.float32)
+
+    albedo = profile.ground_albedo  # (n_wl,)
+    e_direct_ground = (e_sun[None, :] * t_sun[0] * np.maximum(mus_nodes, 0.0)[:, None])  # (n_mus, n_wl)
+
+    # layouts: "dir" layout (n_wl, n_dir, n_h, n_mus) with dir = j * n_phi + l;
+    #          "ray" layout (n_wl, n_h * n_mu, n_phi * n_mus) with ray = i * n_mu + j
+    def to_ray(a):
+        a = a.reshape(n_wl, n_mu, n_phi, n_altitudes, n_mus).transpose(0, 3, 1, 2, 4)
+        return a.reshape(n_wl, n_altitudes * n_mu, n_phi * n_mus)
+
+    def to_dir(a):
+        a = a.reshape(n_wl, n_altitudes, n_mu, n_phi, n_mus).transpose(0, 2, 3, 1, 4)
+        return a.reshape(n_wl, n_dir, n_altitudes, n_mus)
+
+    def transport(j_dir, lg):  # lg: (n_mus, n_wl) radiance leaving the ground
+        l_ray = np.matmul(M, to_ray(j_dir))
+        l_ray = l_ray.reshape(n_wl, n_altitudes * n_mu, n_phi, n_mus) + G[:, :, None, None] * lg.T[:, None, None, :]
+        return to_dir(l_ray.reshape(n_wl, n_altitudes * n_mu, n_phi * n_mus))
+
+    up = mu_d > 0
+    irr_w = (mu_d * np.repeat(mu_w, n_phi) * 2.0 * phi_w)[up]  # folded azimuth: factor 2
+
+    irr_w = irr_w.astype(np.float32)
+
+    def ground_irradiance(l_dir):  # downwelling irradiance at h = 0 from the field (n_mus, n_wl)
+        return np.einsum("wdm,d->mw", l_dir[:, up, 0, :], irr_w)
+
+    def scatter(l_dir):
+        flat = l_dir.reshape(n_wl, n_dir, n_altitudes * n_mus)
+        out = np.zeros_like(flat)
+        for pm, sig in species:
+            out += np.matmul(pm, flat).reshape(n_wl, n_dir, n_altitudes, n_mus).__mul__(
+                sig.T[:, None, :, None]).reshape(n_wl, n_dir, -1)
+        return out.reshape(n_wl, n_dir, n_altitudes, n_mus)
+
+    albedo = albedo.astype(np.float32)
+    lg = (albedo[None, :] / np.pi * e_direct_ground).astype(np.float32)
+    radiance = transport(j1, lg)
+    e_diffuse = ground_irradiance(radiance)
+    j_ms = np.zeros_like(j1)
+    contributions = []
+    n_done = 1
+    limit = max_orders if orders is None else orders
+    for n in range(2, limit + 1):
+        j_n = scatter(radiance)
+        j_ms += j_n
+        n_done = n
+        size = float(np.abs(j_n).sum()) / max(float(np.abs(j_ms).sum()), 1e-300)
+        contributions.append(size)
+        if progress is not None:
+            progress(n, size)
+        lg = albedo[None, :] / np.pi * ground_irradiance(radiance)
+        radiance = transport(j_n, lg)
+        e_diffuse = e_diffuse + ground_irradiance(radiance)
+        if orders is None and size < tolerance:
+            break
+    source = j_ms.reshape(n_wl, n_mu, n_phi, n_altitudes, n_mus).astype(np.float64)
+    return MultipleScatteringField(wl, h_nodes, mu_nodes, phi_nodes, mus_nodes, source, e_diffuse.astype(np.float64),
+                                   n_done, contributions)

@@ -1,0 +1,113 @@
+"""Transmittance toward the sun from any point of the atmosphere, with the Earth's shadow.
+
+In a spherically symmetric atmosphere the optical depth from a point at radius r to
+the top of the atmosphere along a direction whose cosine with the local vertical is mu
+depends on (r, mu) only. We tabulate it once per render on a grid of altitudes and of
+Bruneton & Neyret's (2008) distance parameter: with rho = sqrt(r^2 - R^2) and
+H = sqrt(r_top^2 - R^2), the distance d to the top boundary runs from r_top - r
+(looking straight up) to rho + H (the ray grazing the ground), and we take nodes evenly
+in x = (d - d_min) / (d_max - d_min). This spreads the nodes where the optical depth
+changes fastest, near the horizon.
+
+Directions below the local horizon (mu < -rho / r) meet the planet: the point is in the
+Earth's shadow. The sun is a disc of angular radius alpha, so near the horizon it sets
+gradually: the visible fraction is the area of a uniform disc above a straight horizon
+at angular distance e (elevation of the sun's centre above the local horizon),
+0.5 + (c sqrt(1 - c^2) + asin c) / pi with c = clip(e / alpha, -1, 1).
+The optical depth is tabulated for the low-rank basis functions of the extinction
+(:mod:`skymodel.render.medium`), so one table serves every wavelength.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry import altitude_grid
+from .medium import LowRank, march_samples
+from .rays import altitude_along
+
+#: Angular radius of the sun at 1 AU, radians (IAU nominal radius 695,700 km).
+SUN_ANGULAR_RADIUS_RAD = np.arcsin(695_700.0 / 149_597_870.7)
+
+
+class SunTransmittance:
+    """Optical depth to the top of the atmosphere for several low-rank media at once."""
+
+    def __init__(self, media: list[LowRank], ground_radius: float, top_altitude: float,
+                 n_altitudes: int = 96, n_x: int = 192, n_steps: int = 256):
+        self.media = list(media)
+        self.R = float(ground_radius)
+        self.top = float(top_altitude)
+        self.r_top = self.R + self.top
+        self.h_nodes = altitude_grid(n_altitudes, self.top * (1 - 1e-9), stretch=3.0)
+        self.x_nodes = np.linspace(0.0, 1.0, n_x) * (1.0 - 1e-9)
+        hh, xx = np.meshgrid(self.h_nodes, self.x_nodes, indexing="ij")
+        mu = self._mu_from_x(hh, xx)
+        r = self.R + hh
+        p = np.stack([np.zeros_like(r), np.zeros_like(r), r], axis=-1)
+        d = np.stack([np.sqrt(np.clip(1 - mu * mu, 0, None)), np.zeros_like(mu), mu], axis=-1)
+        t_end = self._distance_to_top(r, mu)
+        t, dt = march_samples(p, d, np.zeros_like(r), t_end, n_steps, self.R)
+        h = altitude_along(p, d, t, self.R)
+        # integrals of every basis function along every tabulated ray: (n_h, n_x, k_total),
+        # the bases of all media stacked (they share the profile's altitude nodes)
+        stacked = LowRank(self.media[0].nodes_m, np.concatenate([m.basis for m in self.media], axis=1),
+                          np.zeros((1, 1)), self.media[0].layered, self.media[0].top_m)
+        table = np.einsum("hxsk,hxs->hxk", stacked.basis_at(h), dt)
+        splits = np.cumsum([m.rank for m in self.media])[:-1]
+        self.tables = np.split(table, splits, axis=-1)
+
+    def _distance_to_top(self, r, mu):
+        disc = r * r * (mu * mu - 1.0) + self.r_top**2
+        return -r * mu + np.sqrt(np.clip(disc, 0.0, None))
+
+    def _mu_from_x(self, h, x):
+        r = self.R + h
+        rho = np.sqrt(np.clip(r * r - self.R**2, 0.0, None))
+        big_h = np.sqrt(self.r_top**2 - self.R**2)
+        d_min = self.r_top - r
+        d_max = rho + big_h
+        d = d_min + x * (d_max - d_min)
+        mu = np.where(d > 0, (big_h**2 - rho**2 - d * d) / (2.0 * r * np.where(d > 0, d, 1.0)), 1.0)
+        return np.clip(mu, -1.0, 1.0)
+
+    def _x_from_mu(self, r, mu):
+        rho = np.sqrt(np.clip(r * r - self.R**2, 0.0, None))
+        big_h = np.sqrt(self.r_top**2 - self.R**2)
+        d_min = self.r_top - r
+        d_max = rho + big_h
+        d = self._distance_to_top(r, mu)
+        return np.clip((d - d_min) / np.maximum(d_max - d_min, 1e-9), 0.0, self.x_nodes[-1])
+
+    def visible_fraction(self, altitudes_m, mu_sun):
+        """Fraction of the solar disc above the local horizon (0 in the Earth's shadow)."""
+        r = self.R + np.maximum(np.asarray(altitudes_m, dtype=float), 0.0)
+        sin_horizon = -np.sqrt(np.clip(1.0 - (self.R / r) ** 2, 0.0, 1.0))  # mu of the horizon
+        e = np.arcsin(np.clip(mu_sun, -1.0, 1.0)) - np.arcsin(sin_horizon)
+        c = np.clip(e / SUN_ANGULAR_RADIUS_RAD, -1.0, 1.0)
+        return 0.5 + (c * np.sqrt(1.0 - c * c) + np.arcsin(c)) / np.pi
+
+    def optical_depth(self, altitudes_m, mu_sun, which: int = 0):
+        """Optical depth (…, n_wl) toward the sun of medium ``which``, for points at
+        ``altitudes_m`` whose local vertical makes cosine ``mu_sun`` with the sun
+        direction. Directions under the horizon are clamped to the grazing ray (their
+        light is removed by :meth:`visible_fraction`)."""
+        h = np.clip(np.asarray(altitudes_m, dtype=float), self.h_nodes[0], self.h_nodes[-1])
+        r = self.R + h
+        mu_h = -np.sqrt(np.clip(1.0 - (self.R / r) ** 2, 0.0, 1.0))
+        mu = np.maximum(np.asarray(mu_sun, dtype=float), mu_h)
+        x = self._x_from_mu(r, mu)
+        i = np.clip(np.searchsorted(self.h_nodes, h, side="right") - 1, 0, self.h_nodes.size - 2)
+        fi = ((h - self.h_nodes[i]) / (self.h_nodes[i + 1] - self.h_nodes[i]))[..., None]
+        xs = x * (self.x_nodes.size - 1) / self.x_nodes[-1]
+        j = np.clip(xs.astype(int), 0, self.x_nodes.size - 2)
+        fj = np.clip(xs - j, 0.0, 1.0)[..., None]
+        tab = self.tables[which]
+        tau_k = ((tab[i, j] * (1 - fj) + tab[i, j + 1] * fj) * (1 - fi)
+                 + (tab[i + 1, j] * (1 - fj) + tab[i + 1, j + 1] * fj) * fi)
+        return tau_k @ self.media[which].weights
+
+    def transmittance(self, altitudes_m, mu_sun, which: int = 0):
+        """exp(-tau) times the visible fraction of the disc, (…, n_wl)."""
+        tau = self.optical_depth(altitudes_m, mu_sun, which)
+        return np.exp(-tau) * self.visible_fraction(altitudes_m, mu_sun)[..., None]
