@@ -26,7 +26,7 @@ def add_atmosphere_arguments(p: argparse.ArgumentParser) -> None:
     g.add_argument("--location", default=None, help="location preset (see `skymodel presets`); default rural")
     g.add_argument("--lat", type=float, default=None, help="latitude, degrees north (-90..90)")
     g.add_argument("--lon", type=float, default=None, help="longitude, degrees east (-180..180)")
-    g.add_argument("--month", type=int, default=6, help="month 1..12 (ozone climatology); default 6")
+    g.add_argument("--month", type=int, default=None, help="month 1..12 (ozone climatology); default 6, or the month of --time")
     g.add_argument("--aerosol", default=None, help="tropospheric aerosol type or 'none'; default the location's")
     g.add_argument("--aod550", type=float, default=None, help="aerosol optical depth at 550 nm (0..10)")
     g.add_argument("--turbidity", type=float, default=None, help="(tau_R + tau_A) / tau_R at 550 nm (1..64)")
@@ -42,11 +42,35 @@ def atmosphere_from_args(args):
     location = args.location
     if location is None and (args.lat is None or args.lon is None or args.aerosol is None):
         location = "rural"
+    month = args.month
+    if month is None:
+        month = _time_month(getattr(args, "time", None)) or 6
     return Atmosphere(
-        location=location, month=args.month, latitude=args.lat, longitude=args.lon, aerosol=args.aerosol,
+        location=location, month=month, latitude=args.lat, longitude=args.lon, aerosol=args.aerosol,
         aod550=args.aod550, turbidity=args.turbidity, stratospheric=args.stratospheric,
         ozone_du=args.ozone_du, albedo=args.albedo, n_altitudes=args.altitudes,
     )
+
+
+def _time_month(text):
+    if not text:
+        return None
+    import numpy as np
+
+    try:
+        return int(str(np.datetime64(str(text).rstrip("Zz"), "M")).split("-")[1])
+    except ValueError:
+        raise SkymodelInputError("time", text, "an ISO 8601 UTC date-time such as 2026-06-21T12:00:00Z") from None
+
+
+def _size(text: str):
+    try:
+        parts = [int(v) for v in str(text).lower().split("x")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTH or WIDTHxHEIGHT, got {text!r}") from None
+    if len(parts) not in (1, 2):
+        raise argparse.ArgumentTypeError(f"expected WIDTH or WIDTHxHEIGHT, got {text!r}")
+    return parts[0], (parts[1] if len(parts) == 2 else None)
 
 
 def profile_summary(profile, layers: int | None = None) -> dict:
@@ -167,6 +191,133 @@ def cmd_presets(args) -> int:
     return 0
 
 
+def add_sun_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("sun and observer")
+    g.add_argument("--sun-elevation", type=float, default=None, help="degrees above the horizon (-12..90); default 25")
+    g.add_argument("--sun-azimuth", type=float, default=None, help="degrees clockwise from north; default 180")
+    g.add_argument("--time", default=None, help="UTC date-time: place the sun from --lat/--lon (or the location)")
+    g.add_argument("--observer-altitude", type=float, default=0.0, help="metres above the ground (0..120000)")
+
+
+def sun_from_args(args, atm):
+    """(elevation, azimuth, earth-sun distance in AU) from --sun-* or --time."""
+    from .errors import check_range
+
+    if args.time is not None:
+        if args.sun_elevation is not None or args.sun_azimuth is not None:
+            raise SkymodelInputError("time", args.time, "either --time or --sun-elevation/--sun-azimuth, not both")
+        from . import sun
+
+        pos = sun.solar_position(atm.latitude, atm.longitude, args.time)
+        elev, az = float(np.asarray(pos.elevation_deg)), float(np.asarray(pos.azimuth_deg))
+        dist = float(np.asarray(pos.earth_sun_distance_au))
+    else:
+        elev = 25.0 if args.sun_elevation is None else args.sun_elevation
+        az = 180.0 if args.sun_azimuth is None else args.sun_azimuth
+        dist = 1.0
+    check_range("sun_elevation", elev, -12.0, 90.0, "degrees (below -12 the sky is night: use -12)")
+    check_range("sun_azimuth", az, -360.0, 360.0, "degrees")
+    return elev, az % 360.0, dist
+
+
+class _Progress:
+    def __init__(self, quiet: bool):
+        self.quiet = quiet
+        self.t0 = __import__("time").perf_counter()
+
+    def stage(self, text):
+        if not self.quiet:
+            print(f"[{__import__('time').perf_counter() - self.t0:6.1f}s] {text}", file=sys.stderr, flush=True)
+
+    def order(self, n, size):
+        if not self.quiet:
+            bar = "#" * min(n, 30)
+            print(f"\r[{__import__('time').perf_counter() - self.t0:6.1f}s] scattering order {n:2d} "
+                  f"(adds {size:.2%}) {bar}", end="", file=sys.stderr, flush=True)
+
+
+def cmd_render(args) -> int:
+    from dataclasses import replace as dc_replace
+
+    from .render import image_io
+    from .render.cameras import make_camera
+    from .render.sky import quality_settings, render_sky
+    from .wavelengths import default_wavelengths
+
+    prog = _Progress(args.quiet)
+    atm = atmosphere_from_args(args)
+    elev, az, dist = sun_from_args(args, atm)
+    settings = quality_settings(args.quality)
+    wl = default_wavelengths(args.wavelength_step)
+    width, height = args.size
+    camera = make_camera(args.camera, width, height, n_wavelengths=wl.size)
+    png = None if args.no_png else (args.png or (str(args.out).rsplit(".", 1)[0] + ".png"))
+    # validate every output path before the (long) render, so nothing is half-written
+    for key, path, ext in (("out", args.out, ".exr"), ("png", png, ".png"), ("spectral", args.spectral, ".npz")):
+        if path is not None:
+            image_io._check_output_path(key, path, (ext,))
+    prog.stage(f"atmosphere: {atm.location or 'custom'}, month {atm.month}, aerosol {atm.aerosol}; "
+               f"sun elevation {elev:.2f}, azimuth {az:.2f}; {camera.name} {camera.width}x{camera.height}, "
+               f"{wl.size} wavelengths, quality {args.quality}")
+    profile = atm.optical_profile(wl)
+    if dist != 1.0:
+        profile = dc_replace(profile, solar_irradiance=profile.solar_irradiance / dist**2)
+    img = render_sky(profile, camera, elev, az, args.observer_altitude, settings, include_sun=not args.no_sun,
+                     progress=prog.order)
+    if not args.quiet:
+        print(file=sys.stderr)
+    prog.stage(f"rendered in {img.info['total_s']:.1f}s ({img.info['orders']} scattering orders)")
+    written = image_io.save_outputs(out=args.out, png=png, spectral=args.spectral, radiance=img.radiance,
+                                    wavelengths=wl, camera=camera, exposure_ev=args.exposure, colour_space="xyz" if args.xyz else "rec709",
+                                    metadata={"atmosphere": profile.metadata, "sun_elevation_deg": elev,
+                                              "sun_azimuth_deg": az, "observer_altitude_m": args.observer_altitude,
+                                              "quality": args.quality})
+    for path in written.values():
+        prog.stage(f"wrote {path}")
+    return 0
+
+
+def cmd_radiance(args) -> int:
+    from dataclasses import replace as dc_replace
+
+    from .render.marcher import SkyMarcher
+    from .render.rays import direction_from_angles
+    from .render.sky import quality_settings
+
+    atm = atmosphere_from_args(args)
+    elev, az, dist = sun_from_args(args, atm)
+    profile = atm.optical_profile(args.wavelengths)
+    if dist != 1.0:
+        profile = dc_replace(profile, solar_irradiance=profile.solar_irradiance / dist**2)
+    settings = dc_replace(quality_settings(args.quality), exact=True)
+    zen = np.asarray(args.view_zenith, float)
+    rel = np.asarray(args.relative_azimuth, float)
+    if np.any((zen < 0) | (zen > 180)):
+        raise SkymodelInputError("view_zenith", args.view_zenith, "angles in [0, 180] degrees")
+    zz, rr = np.meshgrid(zen, rel, indexing="ij")
+    d = direction_from_angles(zz.ravel(), (az + rr.ravel()) % 360.0)
+    res = SkyMarcher(profile, elev, az, args.observer_altitude, settings).radiance(d)
+    out = {
+        "units": {"radiance": "W m^-2 sr^-1 nm^-1", "solar_irradiance_toa": "W m^-2 nm^-1", "angles": "degrees"},
+        "atmosphere": profile.metadata, "sun_elevation_deg": elev, "sun_azimuth_deg": az,
+        "observer_altitude_m": args.observer_altitude, "wavelengths_nm": profile.wavelengths_nm.tolist(),
+        "solar_irradiance_toa": profile.solar_irradiance.tolist(),
+        "direct_solar_irradiance_at_observer": res.sun_irradiance.tolist(),
+        "directions": [{"view_zenith_deg": float(z), "relative_azimuth_deg": float(r), "radiance": res.radiance[i].tolist()}
+                       for i, (z, r) in enumerate(zip(zz.ravel(), rr.ravel()))],
+    }
+    if args.json:
+        print(json.dumps(out, indent=1))
+    else:
+        wl = profile.wavelengths_nm
+        print("view_zen rel_az " + " ".join(f"{w:9.1f}" for w in wl))
+        for item in out["directions"]:
+            print(f"{item['view_zenith_deg']:8.2f} {item['relative_azimuth_deg']:6.1f} "
+                  + " ".join(f"{v:9.3e}" for v in item["radiance"]))
+        print("E_toa          " + " ".join(f"{v:9.4f}" for v in profile.solar_irradiance))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="skymodel", description="Physically based spectral sky and atmosphere.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -189,6 +340,34 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("presets", help="list locations, aerosol types, components and surfaces")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_presets)
+
+    p = sub.add_parser("render", help="render a sky image (EXR, PNG preview, spectral NPZ)")
+    add_atmosphere_arguments(p)
+    add_sun_arguments(p)
+    p.add_argument("--camera", default="equirectangular", help="equirectangular, fisheye or dome")
+    p.add_argument("--size", type=_size, default=(512, None), help="WIDTH or WIDTHxHEIGHT in pixels (default 512)")
+    p.add_argument("--quality", default="preview", help="preview, final or reference (default preview)")
+    p.add_argument("--wavelength-step", type=float, default=5.0, help="spectral sampling in nm (default 5)")
+    p.add_argument("--out", default="sky.exr", help="scene-linear float EXR (default sky.exr)")
+    p.add_argument("--png", default=None, help="tone-mapped PNG preview (default: the EXR name with .png)")
+    p.add_argument("--no-png", action="store_true", help="write no PNG")
+    p.add_argument("--spectral", default=None, help="also save the spectral cube as .npz")
+    p.add_argument("--xyz", action="store_true", help="EXR channels X, Y, Z instead of Rec.709 R, G, B")
+    p.add_argument("--exposure", type=float, default=None, help="PNG exposure in EV relative to auto")
+    p.add_argument("--no-sun", action="store_true", help="leave the solar disc out of the image")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("radiance", help="spectral radiance for listed view directions (point queries)")
+    add_atmosphere_arguments(p)
+    add_sun_arguments(p)
+    p.add_argument("--view-zenith", type=_floats, default=[0.0, 30.0, 60.0, 80.0], help="degrees, comma-separated")
+    p.add_argument("--relative-azimuth", type=_floats, default=[0.0, 90.0, 180.0],
+                   help="degrees from the sun's azimuth (0 = toward the sun), comma-separated")
+    p.add_argument("--wavelengths", type=_floats, default=None, help="nm, comma-separated (default 380..780 by 5)")
+    p.add_argument("--quality", default="final", help="preview, final or reference (default final)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_radiance)
 
     for register in _EXTRA_COMMANDS:
         register(sub)

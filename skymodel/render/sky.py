@@ -1,0 +1,113 @@
+"""Rendering a sky image: atmosphere + sun + camera -> spectral radiance per pixel.
+
+Quality presets name a set of :class:`~skymodel.render.marcher.MarchSettings`; the
+values were chosen from the accuracy/time measurements in ``docs/accuracy.md``
+(``skymodel bench accuracy``). The sun disc is added to the pixels it covers, limb
+darkened, with its total irradiance conserved: the disc radiance is spread over the
+pixels whose centres fall inside it and normalised so that the sum of radiance x pixel
+solid angle equals the direct solar irradiance at the observer; a disc smaller than a
+pixel lands in the pixel that contains its centre.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..errors import SkymodelInputError, check_choice
+from .cameras import Camera
+from .marcher import MarchSettings, SkyMarcher
+from .sun_transmittance import SUN_ANGULAR_RADIUS_RAD
+
+#: Quality presets (see docs/accuracy.md for the measured error and time of each).
+QUALITY = {
+    "preview": MarchSettings(view_steps=40, order_tolerance=1e-2, ms_wavelength_step_nm=40.0, table_altitudes=16,
+                             table_mu=16, table_phi=8, table_mus=16, table_steps=32, sun_table_altitudes=64,
+                             sun_table_x=128, sun_table_steps=96, grid_zenith=64, grid_zenith_ground=16,
+                             grid_azimuth=37),
+    "final": MarchSettings(),
+    "reference": MarchSettings(view_steps=128, order_tolerance=1e-4, ms_wavelength_step_nm=10.0,
+                               table_altitudes=32, table_mu=48, table_phi=16, table_mus=32, table_steps=96,
+                               sun_table_altitudes=128, sun_table_x=256, sun_table_steps=320, grid_zenith=192,
+                               grid_zenith_ground=48, grid_azimuth=121, sun_exact_deg=12.0),
+}
+
+
+def quality_settings(quality) -> MarchSettings:
+    if isinstance(quality, MarchSettings):
+        return quality
+    return QUALITY[check_choice("quality", quality, QUALITY)]
+
+
+@dataclass
+class SkyImage:
+    """A rendered image: spectral radiance (H, W, n_wl) in W m^-2 sr^-1 nm^-1."""
+
+    radiance: np.ndarray
+    valid: np.ndarray
+    directions: np.ndarray
+    wavelengths_nm: np.ndarray
+    camera: Camera
+    sun_direction: np.ndarray
+    sun_irradiance: np.ndarray  # direct solar irradiance at the observer, W m^-2 nm^-1
+    info: dict = field(default_factory=dict)
+
+
+def add_sun_disc(radiance, directions, valid, solid_angles, sun_dir, irradiance, wavelengths_nm,
+                 angular_radius_rad: float = SUN_ANGULAR_RADIUS_RAD, limb_darkening=None) -> np.ndarray:
+    """Add the solar disc to ``radiance`` (H, W, n_wl) in place; returns the pixel mask
+    it touched. ``limb_darkening(wavelengths_nm, mu)`` -> I(mu)/I(1) shaped mu.shape + (n_wl,)."""
+    if not np.any(irradiance > 0):
+        return np.zeros(valid.shape, bool)
+    cosang = np.clip(directions @ sun_dir, -1.0, 1.0)
+    ang = np.arccos(cosang)
+    inside = valid & (ang <= angular_radius_rad)
+    if not np.any(inside):
+        # the disc falls between pixel centres: the nearest valid pixel takes it all
+        a = np.where(valid, ang, np.inf)
+        idx = np.unravel_index(np.argmin(a), a.shape)
+        if not np.isfinite(a[idx]) or a[idx] > 4 * angular_radius_rad + np.sqrt(solid_angles[idx]):
+            return np.zeros(valid.shape, bool)
+        inside = np.zeros(valid.shape, bool)
+        inside[idx] = True
+    rho = np.clip(ang[inside] / angular_radius_rad, 0.0, 1.0)
+    mu = np.sqrt(1.0 - rho**2)
+    if limb_darkening is None:
+        profile = np.ones(mu.shape + (len(wavelengths_nm),))
+    else:
+        profile = np.asarray(limb_darkening(wavelengths_nm, mu), dtype=float)
+    weight = profile * solid_angles[inside][:, None]
+    total = weight.sum(axis=0)
+    radiance[inside] += profile * (irradiance / np.where(total > 0, total, 1.0))
+    return inside
+
+
+def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_deg: float = 180.0,
+               observer_altitude_m: float = 0.0, quality="final", include_sun: bool = True,
+               progress=None) -> SkyImage:
+    """Render ``camera``'s pixels for the atmosphere ``profile`` (smooth or layered)."""
+    settings = quality_settings(quality)
+    t0 = time.perf_counter()
+    marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings, progress=progress)
+    dirs, valid = camera.directions()
+    h, w = valid.shape
+    n_wl = profile.wavelengths_nm.size
+    radiance = np.zeros((h, w, n_wl))
+    flat = dirs.reshape(-1, 3)
+    sel = np.nonzero(valid.ravel())[0]
+    res = marcher.radiance(flat[sel])
+    radiance.reshape(-1, n_wl)[sel] = res.radiance
+    sun_irr = res.sun_irradiance
+    sun_mask = np.zeros(valid.shape, bool)
+    if include_sun:
+        from .. import sun as sun_module
+
+        sun_mask = add_sun_disc(radiance, dirs, valid, camera.pixel_solid_angles(), marcher.sun, sun_irr,
+                                profile.wavelengths_nm, limb_darkening=getattr(sun_module, "limb_darkening", None))
+    info = dict(res.info)
+    info["total_s"] = time.perf_counter() - t0
+    info["sun_pixels"] = int(sun_mask.sum())
+    info["quality"] = quality if isinstance(quality, str) else "custom"
+    return SkyImage(radiance, valid, dirs, profile.wavelengths_nm, camera, marcher.sun, sun_irr, info)
