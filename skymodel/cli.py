@@ -255,7 +255,7 @@ def cmd_render(args) -> int:
     # validate every output path before the (long) render, so nothing is half-written
     for key, path, ext in (("out", args.out, ".exr"), ("png", png, ".png"), ("spectral", args.spectral, ".npz")):
         if path is not None:
-            image_io._check_output_path(key, path, (ext,))
+            image_io.check_output_path(key, path, (ext,))
     prog.stage(f"atmosphere: {atm.location or 'custom'}, month {atm.month}, aerosol {atm.aerosol}; "
                f"sun elevation {elev:.2f}, azimuth {az:.2f}; {camera.name} {camera.width}x{camera.height}, "
                f"{wl.size} wavelengths, quality {args.quality}")

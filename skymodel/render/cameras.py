@@ -397,7 +397,7 @@ class FisheyeCamera(Camera):
                 d2 = ((vi - [i, j]) ** 2).sum(axis=1)
                 a, b = vi[np.argmin(d2)]
                 best = (None, a, b)
-            pass
+            omega[best[1], best[2]] += omega[i, j]
             omega[i, j] = 0.0
         return omega
 

@@ -39,7 +39,7 @@ import numpy as np
 from ..errors import SkymodelInputError
 
 __all__ = ["write_exr", "write_png", "tonemap", "write_spectral_npz", "save_outputs", "luminance_rec709",
-           "srgb_oetf", "CHROMATICITIES"]
+           "srgb_oetf", "auto_exposure_luminance", "check_output_path", "CHROMATICITIES"]
 
 # ----------------------------------------------------------------------------- files
 
@@ -62,6 +62,10 @@ def _check_output_path(parameter, path, extensions):
     if os.path.isdir(p):
         raise SkymodelInputError(parameter, p, "a file path, not a folder")
     return p
+
+
+#: Public name of the path check (callers validate output paths before a long render).
+check_output_path = _check_output_path
 
 
 def _write_temp(path, write_fn):
@@ -463,6 +467,14 @@ def tonemap(rgb_linear, exposure_ev=None, *, valid=None, average_luminance=None,
 
 
 def _json_default(o):
+    import dataclasses
+
+    if dataclasses.is_dataclass(o) and not isinstance(o, type):
+        return dataclasses.asdict(o)
+    if isinstance(o, Mapping):
+        return dict(o)
+    if isinstance(o, (set, frozenset)):
+        return sorted(o, key=repr)
     if isinstance(o, np.ndarray):
         return o.tolist()
     if isinstance(o, np.generic):
