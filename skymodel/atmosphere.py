@@ -110,7 +110,10 @@ class Atmosphere:
         if self.stratospheric_aod550 is not None:
             set_("stratospheric_aod550", check_range("stratospheric_aod550", self.stratospheric_aod550, 0.0, 2.0))
         if self.ozone_du is not None:
-            set_("ozone_du", check_range("ozone_du", self.ozone_du, 0.0, 1000.0, "DU"))
+            du = check_range("ozone_du", self.ozone_du, 0.0, 1000.0, "DU")
+            if du <= 0.0:
+                raise SkymodelInputError("ozone_du", self.ozone_du, "a column in (0, 1000] DU")
+            set_("ozone_du", du)
         if self.albedo is not None:
             set_("albedo", check_range("albedo", self.albedo, 0.0, 1.0))
         else:
