@@ -163,9 +163,10 @@ class SkyMarcher:
         prof_ms = profile_at_wavelengths(profile, wl_ms)
         prof_ms = replace(prof_ms, solar_irradiance=np.ones_like(wl_ms))
         self.medium_ms = factor_medium(prof_ms, s.delta_m_cutoff_deg)
-        # one table serves both: medium 0 = true extinction on the full grid,
-        # medium 1 = delta-M scaled extinction at the solver wavelengths
-        self.sun_table = SunTransmittance([self.medium.extinction, self.medium_ms.extinction_scaled], self.R,
+        # one table serves all: medium 0 = true extinction on the full grid, medium 1 =
+        # delta-M scaled extinction at the solver wavelengths, medium 2 = the same on the full grid
+        self.sun_table = SunTransmittance([self.medium.extinction, self.medium_ms.extinction_scaled,
+                                           self.medium.extinction_scaled], self.R,
                                           self.top, s.sun_table_altitudes, s.sun_table_x, s.sun_table_steps)
         self.timings = {"tables_s": time.perf_counter() - t_start}
         t1 = time.perf_counter()
@@ -270,6 +271,17 @@ class SkyMarcher:
         src = self.field.source_at(h, mu, phi, mus)
         return (np.exp(-tau_mid) * src * dt[..., None]).sum(axis=1)
 
+    def _capped_aerosol_phase(self, cos_theta):
+        """(1 - f) p*: each regime's phase function with its forward peak clipped at the
+        delta-M cutoff (not renormalised), (R, ..., W)."""
+        prof = self.profile
+        theta = np.degrees(np.arccos(np.clip(np.asarray(cos_theta, dtype=float), -1.0, 1.0)))
+        grid = prof.aerosol_phase_angles_deg
+        idx = np.clip(np.searchsorted(grid, theta, side="right") - 1, 0, grid.size - 2)
+        t = ((theta - grid[idx]) / (grid[idx + 1] - grid[idx]))[..., None]
+        tab = self.medium.truncated_phase * (1.0 - self.medium.forward_fraction)[:, None, :]
+        return tab[:, idx, :] * (1.0 - t) + tab[:, idx + 1, :] * t
+
     # ---------------------------------------------------------------- public
     def direct_sun_irradiance(self) -> np.ndarray:
         """Solar irradiance (W m^-2 nm^-1) on a surface facing the sun at the observer,
@@ -317,20 +329,41 @@ class SkyMarcher:
         prof = self.profile
         med = self.medium
         t, dt, h, up, hits, t1 = self._samples(d)
-        lrs = [med.extinction, med.rayleigh] + [lr for lr in med.aerosol if np.any(lr.weights)]
-        ext, ray, *aers = evaluate_many(lrs, h)  # each (C, S, W)
-        step_tau = ext * dt[..., None]
-        tau_mid = np.cumsum(step_tau, axis=1) - 0.5 * step_tau
-        trans = np.exp(-tau_mid)
-        mus = up @ self.sun  # (C, S)
-        t_sun = self.sun_table.transmittance(h, mus)  # (C, S, W) includes the shadow
-        cos_theta = d @ self.sun  # (C,)
-        scat = ray * prof.rayleigh_phase(cos_theta)[:, None, :]
-        pa = prof.aerosol_phase_at(cos_theta)  # (R, C, W)
         regimes = [reg for reg, lr in enumerate(med.aerosol) if np.any(lr.weights)]
-        for reg, sig in zip(regimes, aers):
-            scat = scat + sig * pa[reg][:, None, :]
-        single = prof.solar_irradiance * (trans * t_sun * scat * dt[..., None]).sum(axis=1)
+        lrs = [med.extinction, med.extinction_scaled, med.rayleigh] + [med.aerosol[reg] for reg in regimes]
+        ext, ext_s, ray, *aers = evaluate_many(lrs, h)  # each (C, S, W)
+        step_tau = ext * dt[..., None]
+        trans = np.exp(-(np.cumsum(step_tau, axis=1) - 0.5 * step_tau))
+        mus = up @ self.sun  # (C, S)
+        t_sun = self.sun_table.transmittance(h, mus, which=0)  # (C, S, W) includes the shadow
+        cos_theta = d @ self.sun  # (C,)
+        pa = prof.aerosol_phase_at(cos_theta)  # (R, C, W)
+        ms_on = self.field.orders > 1
+        if not ms_on:
+            # single scattering alone: true extinction, full phase functions
+            scat = ray * prof.rayleigh_phase(cos_theta)[:, None, :]
+            for reg, sig in zip(regimes, aers):
+                scat = scat + sig * pa[reg][:, None, :]
+            single = prof.solar_irradiance * (trans * t_sun * scat * dt[..., None]).sum(axis=1)
+            step_tau_ground = step_tau
+        else:
+            # With multiple scattering, the first scattering is split as in the solver
+            # (delta-M): the part of every phase function outside the truncated forward
+            # peak, p_cap = min(p, p(cutoff)), is seen through the scaled extinction
+            # (light scattered into the peak on the way counts as undeflected, as in the
+            # solver's diffuse field); the peak p - p_cap through the true extinction.
+            step_tau_s = ext_s * dt[..., None]
+            trans_s = np.exp(-(np.cumsum(step_tau_s, axis=1) - 0.5 * step_tau_s))
+            t_sun_s = self.sun_table.transmittance(h, mus, which=2)
+            p_cap = self._capped_aerosol_phase(cos_theta)  # (R, C, W)
+            broad = ray * prof.rayleigh_phase(cos_theta)[:, None, :]
+            peak = np.zeros_like(broad)
+            for reg, sig in zip(regimes, aers):
+                broad = broad + sig * p_cap[reg][:, None, :]
+                peak = peak + sig * np.maximum(pa[reg] - p_cap[reg], 0.0)[:, None, :]
+            single = prof.solar_irradiance * ((trans_s * t_sun_s * broad + trans * t_sun * peak)
+                                              * dt[..., None]).sum(axis=1)
+            step_tau_ground = step_tau_s
         # ground seen directly: direct sun and (from the solver) diffuse sky light
         ground = np.zeros_like(single)
         ms_ground = np.zeros_like(single)
@@ -339,15 +372,15 @@ class SkyMarcher:
             p_g = self.origin + t1[gi, None] * d[gi]
             n_g = p_g / np.linalg.norm(p_g, axis=1, keepdims=True)
             mus_g = n_g @ self.sun
-            t_ground = np.exp(-step_tau[gi].sum(axis=1))  # (G, W)
-            e_dir = prof.solar_irradiance * self.sun_table.transmittance(np.zeros(gi.size), mus_g) * np.maximum(
-                mus_g, 0.0)[:, None]
+            t_ground = np.exp(-step_tau_ground[gi].sum(axis=1))  # (G, W)
+            e_dir = prof.solar_irradiance * self.sun_table.transmittance(
+                np.zeros(gi.size), mus_g, which=2 if ms_on else 0) * np.maximum(mus_g, 0.0)[:, None]
             ground[gi] = t_ground * prof.ground_albedo / np.pi * e_dir
-            if self.field.orders > 1 or self.field.ground_diffuse_irradiance.any():
+            if ms_on:
                 e_diff = (self.field.ground_irradiance_at(mus_g) @ self.to_full) * prof.solar_irradiance
                 ms_ground[gi] = t_ground * prof.ground_albedo / np.pi * e_diff
         multiple = ms_ground
-        if self.field.orders > 1:
+        if ms_on:
             multiple = multiple + (self._gather_ms(d, t, dt, h, up) @ self.to_full) * prof.solar_irradiance
         return single, multiple, ground
 

@@ -51,6 +51,26 @@ def sun_elevation_nodes(n: int, lowest_deg: float = -20.0) -> np.ndarray:
     return 90.0 * np.sign(u) * u * u
 
 
+def table_altitudes(medium: FactoredMedium, n: int, top: float, weight_tau: float = 0.6) -> np.ndarray:
+    """Altitude nodes for the solver's grid, adapted to the medium: equally spaced in a
+    blend of the fraction of the column's extinction optical depth below h (weight
+    ``weight_tau``, at the middle solver wavelength) and of the fixed stretched grid
+    (which keeps nodes in the thin upper atmosphere). A thin aerosol layer near the
+    ground then gets nodes inside it; linear interpolation across a layer that a node
+    spacing cannot resolve overestimates the source there (measured: +1.5 % at the zenith
+    for a 1.2 km aerosol layer with the plain grid)."""
+    fine = altitude_grid(2001, top, stretch=3.0)
+    ext = medium.extinction.at(fine)
+    e = ext[:, ext.shape[1] // 2]
+    cum = np.concatenate([[0.0], np.cumsum(0.5 * (e[1:] + e[:-1]) * np.diff(fine))])
+    frac_tau = cum / cum[-1] if cum[-1] > 0 else np.linspace(0.0, 1.0, fine.size)
+    frac_grid = np.linspace(0.0, 1.0, fine.size)  # position in the stretched grid
+    c = weight_tau * frac_tau + (1.0 - weight_tau) * frac_grid
+    nodes = np.interp(np.linspace(0.0, 1.0, n), c, fine)
+    nodes[0], nodes[-1] = 0.0, top
+    return nodes
+
+
 @dataclass
 class MultipleScatteringField:
     """The solved field: source J_ms (scattered >= 2 times, per metre) and the diffuse
@@ -111,7 +131,7 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
     top = profile.top_altitude_m
     if n_mu % 2:
         raise ValueError("n_mu must be even (double Gauss-Legendre)")
-    h_nodes = altitude_grid(n_altitudes, top * (1 - 1e-9), stretch=3.0)
+    h_nodes = table_altitudes(medium, n_altitudes, top * (1 - 1e-9))
     x, w = np.polynomial.legendre.leggauss(n_mu // 2)
     mu_nodes = np.concatenate([-0.5 * (x[::-1] + 1.0), 0.5 * (x + 1.0)])  # ascending
     mu_w = np.concatenate([0.5 * w[::-1], 0.5 * w])
