@@ -1,0 +1,360 @@
+"""Putting a computed sky into a Blender scene, all or nothing.
+
+Everything the add-on creates carries the custom property ``skymodel_build`` (the build
+id; world nodes included) and its objects live in the scene's own ``Skymodel``
+collection. A build runs as a :class:`Transaction`: new datablocks and nodes are created
+first, the world/scene settings are then switched over with every old value recorded,
+and only when all of that succeeded are the previous build's datablocks removed. Any
+exception before that point removes what was created and restores what was changed, so
+the scene is exactly as before.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import uuid
+
+import bpy
+
+TAG = "skymodel_build"
+COLLECTION_NAME = "Skymodel"
+PREVIOUS_SURFACE = "skymodel_previous_surface"
+
+
+def is_ours(id_or_node) -> bool:
+    try:
+        return TAG in id_or_node.keys()
+    except (TypeError, AttributeError, ReferenceError):
+        return False
+
+
+class Transaction:
+    """Records what a build creates and changes, to undo it on failure."""
+
+    def __init__(self):
+        self.build_id = uuid.uuid4().hex[:12]
+        self.created: list[tuple[str, object]] = []  # ("images", datablock) / ("node", (tree, node))
+        self.undo: list = []
+        self.names: list[tuple[object, str]] = []  # (datablock or (tree, node name), wanted name)
+
+    # -- creation
+    def new(self, collection: str, *args, **kwargs):
+        db = getattr(bpy.data, collection).new(*args, **kwargs)
+        self.adopt(collection, db)
+        if args and isinstance(args[0], str):
+            self.names.append((db, args[0]))
+        return db
+
+    def adopt(self, collection: str, db):
+        db[TAG] = self.build_id
+        self.created.append((collection, db))
+        return db
+
+    def new_node(self, tree, idname: str, name: str, location=(0, 0)):
+        node = tree.nodes.new(idname)
+        node.name = name
+        node.label = name
+        node.location = location
+        node[TAG] = self.build_id
+        self.created.append(("node", (tree, node.name)))
+        self.names.append(((tree, node.name), name))
+        return node
+
+    # -- changes
+    def set(self, owner, attr: str, value):
+        old = getattr(owner, attr)
+        if hasattr(old, "copy") and not isinstance(old, (str, bytes)):
+            old = old.copy()
+        self.undo.append(lambda o=owner, a=attr, v=old: setattr(o, a, v))
+        setattr(owner, attr, value)
+
+    def set_key(self, owner, key: str, value):
+        had = key in owner.keys()
+        old = owner[key] if had else None
+
+        def restore(o=owner, k=key, h=had, v=old):
+            if h:
+                o[k] = v
+            elif k in o.keys():
+                del o[k]
+
+        self.undo.append(restore)
+        owner[key] = value
+
+    def link_socket(self, tree, from_socket, to_socket):
+        """Link, remembering the links into ``to_socket`` that it replaces."""
+        old = [(lk.from_node.name, lk.from_socket.identifier) for lk in to_socket.links]
+        to_node, to_id = to_socket.node.name, to_socket.identifier
+        tree.links.new(from_socket, to_socket)
+
+        def restore(t=tree, old=old, to_node=to_node, to_id=to_id):
+            node = t.nodes.get(to_node)
+            if node is None:
+                return
+            sock = next((s for s in node.inputs if s.identifier == to_id), None)
+            if sock is None:
+                return
+            for lk in list(sock.links):
+                t.links.remove(lk)
+            for fn, fs in old:
+                src = t.nodes.get(fn)
+                out = next((s for s in src.outputs if s.identifier == fs), None) if src else None
+                if out is not None:
+                    t.links.new(out, sock)
+
+        self.undo.append(restore)
+
+    def link_object(self, collection, obj):
+        collection.objects.link(obj)
+        self.undo.append(lambda c=collection, o=obj: c.objects.unlink(o) if o.name in c.objects else None)
+
+    def link_child_collection(self, parent, child):
+        parent.children.link(child)
+        self.undo.append(lambda p=parent, c=child: p.children.unlink(c) if c.name in p.children else None)
+
+    # -- ending
+    def rollback(self):
+        for fn in reversed(self.undo):
+            try:
+                fn()
+            except Exception as ex:  # keep undoing the rest
+                print(f"[skymodel] rollback step failed: {ex!r}")
+        for kind, item in reversed(self.created):
+            try:
+                if kind == "node":
+                    tree, name = item
+                    node = tree.nodes.get(name)
+                    if node is not None:
+                        tree.nodes.remove(node)
+                else:
+                    getattr(bpy.data, kind).remove(item)
+            except (ReferenceError, RuntimeError) as ex:
+                print(f"[skymodel] rollback removal failed: {ex!r}")
+        self.undo.clear()
+        self.created.clear()
+
+
+# --------------------------------------------------------------------------- lookups
+
+
+def find_collection(scene):
+    for c in scene.collection.children:
+        if is_ours(c):
+            return c
+    return None
+
+
+def world_output(tree):
+    outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputWorld"]
+    for n in outs:
+        if n.is_active_output:
+            return n
+    return outs[0] if outs else None
+
+
+def remove_previous(scene, world, build_id: str):
+    """Delete the previous build's nodes, objects and datablocks (those tagged with
+    another build id and no longer used)."""
+    tree = world.node_tree if world is not None else None
+    if tree is not None:
+        for n in [n for n in tree.nodes if is_ours(n) and n[TAG] != build_id]:
+            tree.nodes.remove(n)
+    coll = find_collection(scene)
+    datas = []
+    if coll is not None:
+        for obj in [o for o in coll.all_objects if is_ours(o) and o[TAG] != build_id]:
+            if obj.data is not None and is_ours(obj.data):
+                datas.append(obj.data)
+            mats = [s.material for s in getattr(obj, "material_slots", []) if s.material is not None]
+            bpy.data.objects.remove(obj)
+            datas.extend(m for m in mats if is_ours(m))
+    for db in datas:
+        try:
+            if db.users == 0:
+                for kind in ("meshes", "lights", "materials"):
+                    col = getattr(bpy.data, kind)
+                    if db.name in col and col[db.name] == db:
+                        col.remove(db)
+                        break
+        except ReferenceError:
+            pass
+    # tagged datablocks orphaned by the swap
+    for kind in ("images", "materials", "meshes", "lights", "node_groups"):
+        col = getattr(bpy.data, kind)
+        for db in [d for d in col if is_ours(d) and d[TAG] != build_id and d.users == 0]:
+            col.remove(db)
+
+
+def remove_all(scene, world):
+    """Remove every node, object and datablock of the add-on from this scene and world
+    (the Remove Sky operator); relinks the world surface the add-on replaced."""
+    tree = world.node_tree if world is not None else None
+    prev = world.get(PREVIOUS_SURFACE) if world is not None else None
+    remove_previous(scene, world, build_id="")
+    coll = find_collection(scene)
+    if coll is not None and len(coll.all_objects) == 0 and not coll.children:
+        bpy.data.collections.remove(coll)
+    if tree is not None and prev:
+        src = tree.nodes.get(prev)
+        out = world_output(tree)
+        if src is not None and out is not None and src.outputs and not out.inputs["Surface"].links:
+            tree.links.new(src.outputs[0], out.inputs["Surface"])
+    if world is not None and PREVIOUS_SURFACE in world.keys():
+        del world[PREVIOUS_SURFACE]
+
+
+# --------------------------------------------------------------------------- pieces
+
+
+def sun_rotation(elevation_deg: float, azimuth_deg: float):
+    """Euler rotation of a sun lamp shining *from* (elevation, azimuth): its local +Z
+    points at the sun (Blender lamps emit along local -Z)."""
+    from mathutils import Vector  # after bpy
+
+    el, az = math.radians(elevation_deg), math.radians(azimuth_deg)
+    d = Vector((math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)))
+    return d.to_track_quat("Z", "Y").to_euler()
+
+
+def _ensure_collection(tx: Transaction, scene):
+    coll = find_collection(scene)
+    if coll is None:
+        coll = tx.new("collections", COLLECTION_NAME)
+        tx.link_child_collection(scene.collection, coll)
+    return coll
+
+
+def _new_sun(tx: Transaction, result):
+    light = tx.new("lights", "Skymodel Sun", "SUN")
+    light.energy = float(result.sun_strength)
+    light.color = tuple(float(c) for c in result.sun_colour)
+    light.angle = math.radians(float(result.sun_angle_deg))
+    obj = tx.new("objects", "Skymodel Sun", light)
+    obj.rotation_mode = "XYZ"
+    obj.rotation_euler = sun_rotation(result.sun_elevation_deg, result.sun_azimuth_deg)
+    obj.location = (0.0, 0.0, 10.0)
+    obj["skymodel_sun_elevation_deg"] = float(result.sun_elevation_deg)
+    obj["skymodel_sun_azimuth_deg"] = float(result.sun_azimuth_deg)
+    return obj
+
+
+def _world_surface(tx: Transaction, world, shader_socket):
+    tree = world.node_tree
+    out = world_output(tree)
+    if out is None:
+        out = tx.new_node(tree, "ShaderNodeOutputWorld", "Skymodel World Output", (300, 300))
+    surf = out.inputs["Surface"]
+    for lk in surf.links:
+        if not is_ours(lk.from_node) and PREVIOUS_SURFACE not in world.keys():
+            tx.set_key(world, PREVIOUS_SURFACE, lk.from_node.name)
+    tx.link_socket(tree, shader_socket, surf)
+    return out
+
+
+def _environment_nodes(tx: Transaction, world, image):
+    tree = world.node_tree
+    x0, y0 = -700, 300
+    env = tx.new_node(tree, "ShaderNodeTexEnvironment", "Skymodel Environment", (x0, y0))
+    env.image = image
+    env.projection = "EQUIRECTANGULAR"
+    env.interpolation = "Linear"
+    bg = tx.new_node(tree, "ShaderNodeBackground", "Skymodel Background", (x0 + 350, y0))
+    bg.inputs["Strength"].default_value = 1.0
+    tree.links.new(env.outputs["Color"], bg.inputs["Color"])
+    _world_surface(tx, world, bg.outputs["Background"])
+
+
+def _black_world_nodes(tx: Transaction, world):
+    tree = world.node_tree
+    bg = tx.new_node(tree, "ShaderNodeBackground", "Skymodel Background", (-350, 300))
+    bg.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    bg.inputs["Strength"].default_value = 0.0
+    _world_surface(tx, world, bg.outputs["Background"])
+
+
+def _view_settings(tx: Transaction, scene, exposure: float):
+    vs = scene.view_settings
+    try:
+        tx.set(vs, "view_transform", "AgX")
+    except TypeError:
+        tx.set(vs, "view_transform", "Filmic")
+    tx.set(vs, "exposure", float(exposure))
+
+
+def load_image(tx: Transaction, path: str, pack: bool):
+    img = bpy.data.images.load(path, check_existing=False)
+    tx.adopt("images", img)
+    img.name = "Skymodel Sky"
+    tx.names.append((img, "Skymodel Sky"))
+    try:
+        img.colorspace_settings.name = "Linear Rec.709"
+    except TypeError:
+        img.colorspace_settings.name = "scene_linear"
+    if tuple(img.size) == (0, 0):
+        raise RuntimeError(f"could not read the sky image {path}")
+    if pack:
+        img.pack()
+    return img
+
+
+def apply_environment(scene, world, settings, result, progress=None):
+    """Environment mode: image world + sun lamp. Returns the build id."""
+    tx = Transaction()
+    try:
+        if progress:
+            progress("loading the sky image")
+        image = load_image(tx, result.image_path, settings.pack_image)
+        coll = _ensure_collection(tx, scene)
+        sun = _new_sun(tx, result)
+        tx.link_object(coll, sun)
+        _environment_nodes(tx, world, image)
+        if settings.set_exposure:
+            _view_settings(tx, scene, result.exposure)
+        _write_info(tx, settings, result)
+        _fail_hook("after_swap")
+    except BaseException:
+        tx.rollback()
+        raise
+    remove_previous(scene, world, tx.build_id)
+    commit_names(tx)
+    return tx.build_id
+
+
+def commit_names(tx: Transaction):
+    """Give the new datablocks and nodes their plain names once the previous build's
+    are gone (so a rebuild is "Skymodel Sun", not "Skymodel Sun.001")."""
+    for item, name in tx.names:
+        try:
+            if isinstance(item, tuple):
+                tree, old = item
+                node = tree.nodes.get(old)
+                if node is not None and node.name != name:
+                    node.name = name
+                    node.label = name
+            elif item.name != name:
+                item.name = name
+        except (ReferenceError, AttributeError):
+            pass
+
+
+def _write_info(tx: Transaction, settings, result):
+    stamp = time.strftime("%Y-%m-%d %H:%M:%S")
+    info = result.info
+    lines = [
+        f"{result.mode.title()}: sun {result.sun_elevation_deg:.2f}° el, {result.sun_azimuth_deg:.2f}° az",
+        f"Sun {result.sun_strength:.3g} W/m² (Y), exposure {result.exposure:+.2f} EV",
+    ]
+    if "total_s" in info:
+        lines.append(f"Built in {info['total_s']:.1f} s" + (" (cached image)" if result.cache_hit else ""))
+    tx.set(settings, "last_build", stamp)
+    tx.set(settings, "last_info", " | ".join(lines))
+
+
+#: Test hook: name of a stage at which to raise (simulates a failure inside the swap).
+FAIL_AT: str | None = None
+
+
+def _fail_hook(stage: str):
+    if FAIL_AT == stage:
+        raise RuntimeError(f"simulated failure at {stage}")

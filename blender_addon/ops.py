@@ -1,0 +1,176 @@
+"""Operators: Build Sky, Remove Sky."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+import traceback
+from pathlib import Path
+
+import bpy
+
+from . import builder, physics
+from .core import input_error_class
+
+#: AUTO mode picks Volumetric when Cycles renders a scene at least this large (metres).
+AUTO_VOLUMETRIC_SIZE_M = 1000.0
+
+
+class Progress:
+    """Progress of a build: the cursor progress in the UI (``wm.progress_*``, which does
+    nothing in background mode) and a printed, time-stamped line per stage."""
+
+    def __init__(self, context):
+        self.wm = context.window_manager if context is not None else None
+        self.t0 = time.perf_counter()
+        self.n = 0
+        self.lines: list[str] = []
+        if self.wm is not None:
+            self.wm.progress_begin(0, 100)
+
+    def __call__(self, text: str):
+        self.n += 1
+        line = f"[skymodel {time.perf_counter() - self.t0:6.1f}s] {text}"
+        self.lines.append(line)
+        print(line, flush=True)
+        if self.wm is not None:
+            self.wm.progress_update(min(99, 5 * self.n))
+
+    def end(self):
+        if self.wm is not None:
+            self.wm.progress_end()
+
+
+def cache_dir() -> Path:
+    """``$SKYMODEL_CACHE_DIR``; else the extension's user folder (``.../extensions/.user/
+    <repo>/skymodel/cache``); else ``<tmp>/skymodel-cache`` (add-on run from a checkout)."""
+    env = os.environ.get("SKYMODEL_CACHE_DIR")
+    if env:
+        return Path(env)
+    pkg = __package__ or ""
+    if pkg.startswith("bl_ext."):
+        try:
+            return Path(bpy.utils.extension_path_user(pkg, path="cache", create=True))
+        except (ValueError, RuntimeError, OSError):
+            pass
+    return physics.default_cache_dir()
+
+
+def scene_extent_m(scene) -> float:
+    """Largest dimension (metres) of the scene's visible mesh objects other than ours."""
+    lo = [float("inf")] * 3
+    hi = [float("-inf")] * 3
+    scale = scene.unit_settings.scale_length or 1.0
+    for obj in scene.objects:
+        if obj.type != "MESH" or builder.is_ours(obj) or obj.hide_render:
+            continue
+        for corner in obj.bound_box:
+            w = obj.matrix_world @ __import__("mathutils").Vector(corner)
+            for k in range(3):
+                lo[k] = min(lo[k], w[k])
+                hi[k] = max(hi[k], w[k])
+    if lo[0] == float("inf"):
+        return 0.0
+    return max(h - l for h, l in zip(hi, lo)) * scale
+
+
+def decide_mode(mode: str, scene) -> str:
+    """AUTO: Volumetric when the scene renders with Cycles and its meshes span at least
+    ``AUTO_VOLUMETRIC_SIZE_M`` (aerial perspective on the scene matters); else Environment."""
+    if mode != "AUTO":
+        return mode
+    if scene.render.engine == "CYCLES" and scene_extent_m(scene) >= AUTO_VOLUMETRIC_SIZE_M:
+        return "VOLUMETRIC"
+    return "ENVIRONMENT"
+
+
+def build(context, settings=None, progress=None):
+    """Build the sky of ``context.scene.world`` (used by the operator and by
+    ``render.py``); raises on bad input or failure, leaving the scene untouched."""
+    scene = context.scene
+    world = scene.world
+    settings = settings or world.skymodel
+    t0 = time.perf_counter()
+    params = settings.to_params()
+    params = dataclasses.replace(params, mode=decide_mode(params.mode, scene))
+    if progress:
+        progress(f"mode {params.mode.lower()}, quality {params.quality}")
+    plan = physics.resolve(params)
+    if progress:
+        progress(f"sun elevation {plan.sun_elevation_deg:.2f}°, azimuth {plan.sun_azimuth_deg:.2f}°"
+                 + (f" ({plan.time_iso})" if plan.time_iso else ""))
+    if params.mode == "ENVIRONMENT":
+        _, result = physics.render_environment(plan, cache_dir(), progress)
+        result.info["total_s"] = time.perf_counter() - t0
+        builder.apply_environment(scene, world, settings, result, progress)
+    else:
+        from . import volumetric
+
+        result = volumetric.compute(plan, cache_dir(), progress)
+        result.info["total_s"] = time.perf_counter() - t0
+        volumetric.apply(scene, world, settings, result, progress)
+    result.info["total_s"] = time.perf_counter() - t0
+    return result
+
+
+class SKYMODEL_OT_build_sky(bpy.types.Operator):
+    """Compute the sky with the spectral core and put it into the scene (world, sun lamp, volumes)"""
+
+    bl_idname = "skymodel.build_sky"
+    bl_label = "Build Sky"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None and context.scene.world is not None
+
+    def execute(self, context):
+        progress = Progress(context)
+        InputError = input_error_class()
+        try:
+            result = build(context, progress=progress)
+        except InputError as ex:
+            self.report({"ERROR"}, f"Skymodel: {ex}")
+            return {"CANCELLED"}
+        except Exception as ex:  # the scene was rolled back; say what happened
+            traceback.print_exc()
+            self.report({"ERROR"}, f"Skymodel: build failed, scene unchanged: {type(ex).__name__}: {ex}")
+            return {"CANCELLED"}
+        finally:
+            progress.end()
+        self.report({"INFO"}, f"Skymodel: {result.mode.lower()} sky built in {result.info['total_s']:.1f} s"
+                    + (" (cached image)" if result.cache_hit else ""))
+        return {"FINISHED"}
+
+
+class SKYMODEL_OT_remove_sky(bpy.types.Operator):
+    """Remove the sky nodes, lamp, volumes and images the add-on created (your own data stays)"""
+
+    bl_idname = "skymodel.remove_sky"
+    bl_label = "Remove Sky"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None
+
+    def execute(self, context):
+        builder.remove_all(context.scene, context.scene.world)
+        if context.scene.world is not None:
+            context.scene.world.skymodel.last_build = ""
+            context.scene.world.skymodel.last_info = ""
+        return {"FINISHED"}
+
+
+CLASSES = (SKYMODEL_OT_build_sky, SKYMODEL_OT_remove_sky)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)

@@ -1,0 +1,219 @@
+"""Headless rendering: build a sky in a fresh scene and render it with Cycles (CPU).
+
+From the repository (``bpy`` module installed)::
+
+    python -m blender_addon.render --location desert --month 1 --sun-elevation 5 \\
+        --mode environment --samples 64 --size 256x128 --out desert.png
+
+Inside Blender, with the extension installed (see docs/blender.md)::
+
+    blender -b --python-exit-code 1 --python-expr "import sys; \\
+        from bl_ext.user_default.skymodel import render; \\
+        sys.exit(render.main(['--location', 'desert', '--sun-elevation', '5', '--out', '/tmp/desert.png']))"
+
+The scene is new (``Skymodel Render``; nothing else in the file is touched): a world,
+the sky (Build Sky with the given settings) and an equirectangular panoramic camera
+``--camera-height`` metres above the ground whose image centre looks horizontally toward
+``--center-azimuth`` (default: the sun's azimuth). The PNG goes through the scene's view
+transform (AgX and the add-on's exposure); ``--exr`` also writes the scene-linear image.
+Exit status 0 on success, 2 for bad input (the message names the parameter), 1 otherwise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import tempfile
+import time
+from types import SimpleNamespace
+
+import bpy
+
+from .core import input_error_class
+
+
+def _size(text):
+    try:
+        w, h = (int(v) for v in str(text).lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT, got {text!r}") from None
+    if not (1 <= w <= 16384 and 1 <= h <= 16384):
+        raise argparse.ArgumentTypeError(f"size out of range: {text!r}")
+    return w, h
+
+
+def parse_args(argv=None):
+    ap = argparse.ArgumentParser(prog="python -m blender_addon.render", description=__doc__.split("\n\n")[0])
+    g = ap.add_argument_group("atmosphere")
+    g.add_argument("--location", default=None, help="location preset (default rural)")
+    g.add_argument("--lat", type=float, default=None, help="latitude, degrees north (custom location)")
+    g.add_argument("--lon", type=float, default=None, help="longitude, degrees east (custom location)")
+    g.add_argument("--month", type=int, default=6, help="1..12 (ignored with --time)")
+    g.add_argument("--aerosol", default=None, help="aerosol type or 'none' (default: the location's)")
+    g.add_argument("--aod550", type=float, default=None)
+    g.add_argument("--turbidity", type=float, default=None)
+    g.add_argument("--stratospheric", default="background", choices=["background", "volcanic", "none"])
+    g.add_argument("--ozone-du", type=float, default=None)
+    g.add_argument("--albedo", type=float, default=None)
+    g = ap.add_argument_group("sun")
+    g.add_argument("--sun-elevation", type=float, default=None, help="degrees (-12..90), default 25")
+    g.add_argument("--sun-azimuth", type=float, default=None, help="degrees clockwise from north, default 180")
+    g.add_argument("--time", default=None, help="UTC date-time YYYY-MM-DDTHH:MM (sun placed by the core)")
+    g = ap.add_argument_group("render")
+    g.add_argument("--mode", default="environment", choices=["auto", "environment", "volumetric"])
+    g.add_argument("--quality", default="preview", choices=["preview", "final", "reference"])
+    g.add_argument("--image-width", type=int, default=0, help="environment image width (0: by quality)")
+    g.add_argument("--layers", type=int, default=8, help="volume layers (volumetric)")
+    g.add_argument("--volume-bounces", type=int, default=8)
+    g.add_argument("--samples", type=int, default=64)
+    g.add_argument("--size", type=_size, default=(256, 128), help="WIDTHxHEIGHT of the render")
+    g.add_argument("--camera-height", type=float, default=1.7, help="metres above the ground")
+    g.add_argument("--center-azimuth", type=float, default=None, help="image centre azimuth (default: the sun's)")
+    g.add_argument("--out", required=True, help="PNG file")
+    g.add_argument("--exr", default=None, help="also write the scene-linear image (OpenEXR)")
+    return ap.parse_args(argv)
+
+
+def _ensure_registered():
+    if not hasattr(bpy.types.World, "skymodel"):
+        from . import register
+
+        register()
+
+
+def _apply_options(s, o):
+    s.location_source = "CUSTOM" if (o.location is None and o.lat is not None) else "PRESET"
+    s.location = o.location or "rural"
+    if o.lat is not None:
+        s.latitude = math.radians(o.lat)
+    if o.lon is not None:
+        s.longitude = math.radians(o.lon)
+    s.aerosol = o.aerosol or "location"
+    s.aerosol_amount = "AOD" if o.aod550 is not None else ("TURBIDITY" if o.turbidity is not None else "DEFAULT")
+    if o.aod550 is not None:
+        s.aod550 = o.aod550
+    if o.turbidity is not None:
+        s.turbidity = o.turbidity
+    s.stratospheric = o.stratospheric
+    s.use_ozone = o.ozone_du is not None
+    if o.ozone_du is not None:
+        s.ozone_du = o.ozone_du
+    s.use_albedo = o.albedo is not None
+    if o.albedo is not None:
+        s.albedo = o.albedo
+    if o.time:
+        import datetime as dt
+
+        try:
+            t = dt.datetime.fromisoformat(o.time.rstrip("Zz"))
+        except ValueError:
+            raise input_error_class()("time", o.time, "an ISO date-time such as 2026-06-21T19:30") from None
+        s.sun_source = "TIME"
+        s.year, s.month, s.day, s.hour, s.minute = t.year, t.month, t.day, t.hour, t.minute
+    else:
+        s.sun_source = "ANGLES"
+        s.month = o.month
+        el = 25.0 if o.sun_elevation is None else o.sun_elevation
+        az = 180.0 if o.sun_azimuth is None else o.sun_azimuth
+        err = input_error_class()
+        if not -12.0 <= el <= 90.0:  # the property would clamp silently
+            raise err("sun_elevation", el, "a number in [-12, 90] degrees")
+        s.sun_elevation = math.radians(el)
+        s.sun_azimuth = math.radians(az % 360.0)
+    s.mode = o.mode.upper()
+    s.quality = o.quality
+    s.image_width = o.image_width
+    s.n_layers = o.layers
+    s.volume_bounces = o.volume_bounces
+
+
+def build_scene(o, progress=print):
+    """A new scene with world, camera and the sky; returns it."""
+    _ensure_registered()
+    from . import ops
+
+    scene = bpy.data.scenes.new("Skymodel Render")
+    world = bpy.data.worlds.new("Skymodel World")
+    scene.world = world
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = int(o.samples)
+    scene.cycles.use_denoising = False
+    scene.render.resolution_x, scene.render.resolution_y = o.size
+    scene.render.resolution_percentage = 100
+    cam_data = bpy.data.cameras.new("Skymodel Camera")
+    cam_data.type = "PANO"
+    cam_data.panorama_type = "EQUIRECTANGULAR"
+    cam_data.clip_start = 0.01
+    cam_data.clip_end = 2.0e7
+    cam = bpy.data.objects.new("Skymodel Camera", cam_data)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    cam.location = (0.0, 0.0, float(o.camera_height))
+    _apply_options(world.skymodel, o)
+    ctx = SimpleNamespace(scene=scene, window_manager=None)
+    result = ops.build(ctx, progress=lambda t: progress(f"[skymodel] {t}") if progress else None)
+    az = result.sun_azimuth_deg if o.center_azimuth is None else o.center_azimuth
+    # camera: local -Z forward; X 90 deg looks north (+Y), Z rotation -az turns it to azimuth az
+    cam.rotation_euler = (math.radians(90.0), 0.0, -math.radians(az))
+    return scene
+
+
+def _render(scene, path, fmt):
+    r = scene.render
+    old = (r.filepath, r.image_settings.file_format)
+    try:
+        r.image_settings.file_format = fmt
+        r.filepath = path
+        bpy.ops.render.render(write_still=True, scene=scene.name)
+    finally:
+        r.filepath, r.image_settings.file_format = old
+
+
+def render_linear(scene) -> "np.ndarray":
+    """Render and return the scene-linear image (H, W, 3) float32, row 0 at the top."""
+    import numpy as np
+
+    folder = tempfile.mkdtemp(prefix="skymodel-render-")
+    path = os.path.join(folder, "render.exr")
+    _render(scene, path, "OPEN_EXR")
+    img = bpy.data.images.load(path, check_existing=False)
+    try:
+        w, h = img.size
+        px = np.empty(w * h * 4, np.float32)
+        img.pixels.foreach_get(px)
+    finally:
+        bpy.data.images.remove(img)
+        os.remove(path)
+        os.rmdir(folder)
+    return px.reshape(h, w, 4)[::-1, :, :3].copy()
+
+
+def main(argv=None) -> int:
+    try:
+        o = parse_args(argv)
+    except SystemExit as ex:  # argparse: bad usage
+        return int(ex.code or 0)
+    err = input_error_class()
+    t0 = time.perf_counter()
+    try:
+        out = os.path.abspath(o.out)
+        if not os.path.isdir(os.path.dirname(out)):
+            raise err("out", o.out, "a path in an existing folder")
+        scene = build_scene(o)
+        if o.exr:
+            _render(scene, os.path.abspath(o.exr), "OPEN_EXR")
+            print(f"[skymodel] wrote {o.exr}")
+        scene.render.image_settings.color_depth = "8"
+        _render(scene, out, "PNG")
+    except err as ex:
+        print(f"skymodel: error: {ex}", file=sys.stderr)
+        return 2
+    print(f"[skymodel] wrote {out} in {time.perf_counter() - t0:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,438 @@
+"""Volumetric mode: the atmosphere as nested Cycles volumes around the planet.
+
+Geometry
+    The planet (radius R = 6360 km, the core's) is centred at (0, 0, -R): the scene origin
+    is on the ground, +Z up, the camera near the origin. The layered profile of the core
+    (``OpticalProfile.layered``: edges with equal shares of the 550 nm optical depth,
+    per-layer mean coefficients) becomes
+
+    * one closed **ball** per layer edge: ball i (radius R + edge[i+1]) carries the
+      *difference* between layer i and layer i+1 (the outermost the top layer's value),
+      because overlapping Cycles volumes add: inside ball i and every ball around it the
+      sum is layer i's value;
+    * a ball cannot carry a negative *scattering* difference (Cycles renders it wrong,
+      measured: +39 % radiance for a -50 % difference; negative *absorption* differences
+      are rendered exactly). So each scattering species is split into a part that does not
+      increase with height (running minimum from the ground: balls) and the non-negative
+      rest (the stratospheric aerosol layer), which goes into closed **shells**, one per
+      layer that needs it, their surfaces inset by ``SHELL_INSET_M`` from the layer edges
+      (coincident boundaries render wrong) and their coefficients scaled by
+      thickness / (thickness - 2 inset) to keep the optical depth;
+    * the **ground**: a sphere of radius R with a diffuse BSDF of the ground albedo,
+      lowered by ``GROUND_DROP_M`` (1 cm) so it does not z-fight a ground plane at z = 0.
+
+    All spheres share one angular tessellation (so they never cross), built with numpy:
+    the pole above/below the camera, ring spacing dtheta(theta) = sqrt(8 max(s0, f R
+    theta) / R) with s0 = 0.5 m and f = 1e-4, i.e. the chord sag is at most 0.5 m within
+    ~5 km of the camera and at most 1e-4 of the distance beyond (10 m at 100 km), and
+    ``SEGMENTS`` = 256 around (azimuthal sag 7.5e-5 of the distance: 0.37 m at the first
+    ring, 5 km away). See :func:`sag_report`.
+
+Media (Volume Coefficients nodes, Blender >= 4.5)
+    Per ball/shell: molecules with the RAYLEIGH phase (scatter = Rayleigh coefficient
+    difference, absorption = ozone + aerosol absorption difference), and per aerosol
+    regime (troposphere, stratosphere) two Henyey-Greenstein lobes from the core's
+    double-HG fit (:func:`skymodel.phase_fit.fit_phase`, first moment kept exactly) of
+    the regime's phase table averaged over wavelength with the weights below.
+
+RGB projection
+    Cycles is RGB. A spectral coefficient sigma(lambda) becomes, per channel c,
+    ``sigma_c = sum(w_c sigma) / sum(w_c)`` with ``w_c(lambda) = E_sun(lambda) *
+    rbar_c(lambda) * dlambda``, ``rbar_c`` the Rec.709 colour-matching functions
+    (``M_709 @ (xbar, ybar, zbar)``, negative lobes included) and E_sun the
+    extraterrestrial solar spectrum: exact for optically thin single scattering of
+    sunlight (sky radiance per channel = E_c sigma_c p), approximate once transmittance
+    along long paths matters (low sun). The sun lamp carries the *extraterrestrial*
+    irradiance (strength E_Y, colour RGB(E) / E_Y): Cycles attenuates it through the
+    volumes. The error of this projection against the spectral renderer is measured by
+    ``benchmarks/bench_blender.py`` (docs/blender.md).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from .core import core
+from .physics import SkyResult, exposure_from_illuminance, horizontal_illuminance, spectrum_rgb, sun_lamp
+
+#: Spectral grid of the projection (nm).
+WAVELENGTH_STEP_NM = 10.0
+#: Sag tolerances of the sphere tessellation: absolute near the camera, relative beyond.
+SAG_ABS_M = 0.5
+SAG_REL = 1e-4
+SEGMENTS = 256
+#: Shell surfaces sit this far inside their layer's edges (never on a ball's boundary).
+SHELL_INSET_M = 20.0
+#: A layer's non-monotone rest is dropped (no shell) when its optical depth is below this
+#: in every channel (the stratospheric aerosol's ~1e-11 m^-1 in the troposphere).
+SHELL_MIN_TAU = 1e-4
+#: The ground sphere is lowered by this much (no z-fighting with a plane at z = 0).
+GROUND_DROP_M = 0.01
+#: Cycles evaluates at most 64 closures at a point, summed over every volume that contains
+#: it (each ball around the camera + one shell); stay under this with some room.
+CLOSURE_BUDGET = 56
+#: Size of the core render that sets the exposure in this mode.
+EXPOSURE_IMAGE_WIDTH = 128
+
+
+# --------------------------------------------------------------------------- geometry
+
+
+def ring_angles(radius_m: float, sag_abs_m: float = SAG_ABS_M, sag_rel: float = SAG_REL) -> np.ndarray:
+    """Polar angles (rad, from the pole above the camera, 0..pi) of the rings."""
+    th = [0.0]
+    while th[-1] < math.pi:
+        t = th[-1]
+        d = math.sqrt(8.0 * max(sag_abs_m, sag_rel * radius_m * t) / radius_m)
+        d = min(d, math.pi / 32)
+        th.append(min(math.pi, t + d))
+        if math.pi - th[-1] < 0.25 * d:  # avoid a sliver ring at the far pole
+            th[-1] = math.pi
+    return np.asarray(th)
+
+
+def sag_report(radius_m: float = 6_360_000.0) -> dict:
+    """Chord sags of the tessellation (metres) near the camera and at a few distances."""
+    th = ring_angles(radius_m)
+    dth = np.diff(th)
+    ring_sag = radius_m * (1 - np.cos(dth / 2))
+    dphi = 2 * math.pi / SEGMENTS
+    out = {"rings": int(th.size), "segments": SEGMENTS, "faces": int((th.size - 1) * SEGMENTS)}
+    for km in (0, 5, 20, 100, 1000):
+        t = km * 1000.0 / radius_m
+        k = int(np.clip(np.searchsorted(th, t, side="right") - 1, 0, dth.size - 1))
+        az_sag = radius_m * math.sin(max(t, th[1])) * (1 - math.cos(dphi / 2))
+        out[f"sag_at_{km}km_m"] = float(max(ring_sag[k], az_sag if km else 0.0))
+    return out
+
+
+def sphere_arrays(radius_m: float, centre_z: float, thetas: np.ndarray, segments: int = SEGMENTS,
+                  inward: bool = False):
+    """Vertices (n, 3) float64 and polygons (triangle fans at the poles, quads between) of
+    a sphere with its first pole at the top (above the camera)."""
+    inner = thetas[1:-1]
+    phi = np.arange(segments) * (2 * math.pi / segments)
+    st, ct = np.sin(inner)[:, None], np.cos(inner)[:, None]
+    ring = np.stack([radius_m * st * np.cos(phi), radius_m * st * np.sin(phi),
+                     np.broadcast_to(radius_m * ct, (inner.size, segments))], axis=-1).reshape(-1, 3)
+    top = np.array([[0.0, 0.0, radius_m]])
+    bottom = np.array([[0.0, 0.0, -radius_m]])
+    verts = np.concatenate([top, ring, bottom])
+    verts[:, 2] += centre_z
+    n_r = inner.size
+    idx = 1 + np.arange(n_r * segments).reshape(n_r, segments)
+    nxt = np.roll(idx, -1, axis=1)
+    # quads between ring k and k+1, outward winding (counter-clockwise seen from outside)
+    quads = np.stack([idx[:-1], idx[1:], nxt[1:], nxt[:-1]], axis=-1).reshape(-1, 4)
+    top_tris = np.stack([np.zeros(segments, int), idx[0], nxt[0]], axis=-1)
+    last = verts.shape[0] - 1
+    bot_tris = np.stack([np.full(segments, last), nxt[-1], idx[-1]], axis=-1)
+    if inward:
+        quads = quads[:, ::-1]
+        top_tris = top_tris[:, ::-1]
+        bot_tris = bot_tris[:, ::-1]
+    return verts, top_tris, quads, bot_tris
+
+
+# --------------------------------------------------------------------------- media
+
+
+def rgb_weights(wavelengths_nm, solar_irradiance) -> np.ndarray:
+    """(n_wl, 3) projection weights, each column summing to 1 (see module doc)."""
+    colorimetry = core("colorimetry")
+    W = colorimetry.cmf_weights(wavelengths_nm) @ colorimetry.xyz_to_rgb_matrix("rec709").T  # (n_wl, 3)
+    w = np.asarray(solar_irradiance, float)[:, None] * W
+    return w / w.sum(axis=0, keepdims=True)
+
+
+def project(coeff, weights) -> np.ndarray:
+    """Spectral coefficients (..., n_wl) -> RGB (..., 3)."""
+    return np.asarray(coeff, float) @ weights
+
+
+def split_monotone(c: np.ndarray):
+    """c (n_layer, 3) -> (balls part non-increasing with height, non-negative rest)."""
+    b = np.minimum.accumulate(np.maximum(c, 0.0), axis=0)
+    return b, np.maximum(c, 0.0) - b
+
+
+def differences(b: np.ndarray) -> np.ndarray:
+    """Per-ball values so that sum over balls j >= i equals b[i] (outermost = b[-1])."""
+    d = b.copy()
+    d[:-1] = b[:-1] - b[1:]
+    return d
+
+
+def regime_phase_fits(profile, weights, column_scattering_by_regime):
+    """(n_regime) list of (w, g1, g2) double-HG lobes, or None for an empty regime."""
+    fit_phase = core("phase_fit").fit_phase
+    fits = []
+    for r in range(profile.aerosol_phase.shape[0]):
+        col = column_scattering_by_regime[r]  # (n_wl,)
+        wsum = (weights * col[:, None]).sum(axis=1)  # weight of each wavelength
+        if not np.any(col > 0) or not wsum.sum() > 0:
+            fits.append(None)
+            continue
+        wl_w = np.maximum(wsum, 0.0)
+        wl_w = wl_w / wl_w.sum()
+        table = profile.aerosol_phase[r] @ wl_w  # (n_angle,)
+        f = fit_phase(profile.aerosol_phase_angles_deg, table[:, None])
+        fits.append({"w": float(f.dhg_w[0]), "g1": float(f.dhg_g1[0]), "g2": float(f.dhg_g2[0]),
+                     "g": float(f.g[0]), "hg_error": float(f.hg_error[0]), "dhg_error": float(f.dhg_error[0])})
+    return fits
+
+
+def volume_layers(plan, n_layers: int):
+    """The balls and shells (plain dicts, radii in metres above the ground) and the
+    spectral pieces the projection used."""
+    wl = core("wavelengths").default_wavelengths(WAVELENGTH_STEP_NM)
+    prof = plan.profile(wl)
+    lay = prof.layered(n_layers=int(n_layers))
+    weights = rgb_weights(wl, prof.solar_irradiance)
+    edges = np.asarray(lay.edges_m, float)
+    ray = project(lay.rayleigh_scattering, weights)
+    # a channel can come out slightly negative where the colour-matching functions are
+    # (ozone in blue: -6e-9 m^-1); negative absorption is not physical: clip at 0
+    absn = np.maximum(project(lay.ozone_absorption + lay.aerosol_absorption, weights), 0.0)
+    aer = [project(a, weights) for a in lay.aerosol_scattering_by_regime]
+    column = [lay.vertical_optical_depth(a) for a in lay.aerosol_scattering_by_regime]
+    fits = regime_phase_fits(prof, weights, column)
+    species = [("rayleigh", ray, None)] + [(f"aerosol{r}", aer[r], fits[r]) for r in range(len(aer))]
+    balls = [{"top_m": float(edges[i + 1]), "absorption": None, "scatter": {}} for i in range(lay.n_layers)]
+    shells = {}
+    dropped_tau = np.zeros(3)
+    d_abs = differences(absn)
+    for i in range(lay.n_layers):
+        balls[i]["absorption"] = [float(v) for v in d_abs[i]]
+    for name, c, _fit in species:
+        b, rest = split_monotone(c)
+        d = differences(b)
+        for i in range(lay.n_layers):
+            if np.any(d[i] > 0):
+                balls[i]["scatter"][name] = [float(v) for v in d[i]]
+            lo, hi = float(edges[i]), float(edges[i + 1])
+            if np.all(rest[i] * (hi - lo) < SHELL_MIN_TAU):
+                dropped_tau += rest[i] * (hi - lo)
+            else:
+                inset = min(SHELL_INSET_M, 0.1 * (hi - lo))
+                scale = (hi - lo) / (hi - lo - 2 * inset)
+                sh = shells.setdefault(i, {"bottom_m": lo + inset, "top_m": hi - inset, "scatter": {}})
+                sh["scatter"][name] = [float(v * scale) for v in rest[i]]
+    phases = {"rayleigh": {"phase": "RAYLEIGH"}}
+    for r, f in enumerate(fits):
+        phases[f"aerosol{r}"] = f
+    # closures at a point: per ball 1 (molecules) + lobes per aerosol regime present; + a shell
+    def count(lobes):
+        def n(sc):
+            return 1 + sum(lobes for k in sc if k.startswith("aerosol") and phases.get(k))
+        return sum(n(b["scatter"]) for b in balls) + max([n(v["scatter"]) for v in shells.values()] or [0])
+    lobes = 2 if count(2) <= CLOSURE_BUDGET else 1
+    if count(lobes) > CLOSURE_BUDGET:
+        raise core("errors").SkymodelInputError(
+            "n_layers", n_layers, f"fewer layers: {count(1)} volume closures would overlap at the camera, "
+                                  f"Cycles evaluates at most 64 (keep under {CLOSURE_BUDGET})")
+    for r, f in enumerate(fits):
+        if f is not None and lobes == 1:
+            phases[f"aerosol{r}"] = dict(f, w=1.0, g1=f["g"], g2=f["g"], lobes=1)
+        elif f is not None:
+            phases[f"aerosol{r}"] = dict(f, lobes=2)
+    albedo = spectrum_rgb(prof.ground_albedo * prof.solar_irradiance, wl) / np.maximum(
+        spectrum_rgb(prof.solar_irradiance, wl), 1e-30)
+    return {
+        "edges_m": [float(e) for e in edges],
+        "balls": balls,
+        "shells": [shells[k] for k in sorted(shells)],
+        "phases": phases,
+        "ground_albedo_rgb": [float(np.clip(a, 0.0, 1.0)) for a in albedo],
+        "closures_at_camera": count(lobes),
+        "dropped_optical_depth_rgb": [float(v) for v in dropped_tau],
+        "weights": weights,
+        "profile": prof,
+        "layered": lay,
+    }
+
+
+def compute(plan, cache_dir=None, progress=None) -> SkyResult:
+    """Everything the volumetric scene needs (no bpy)."""
+    t0 = time.perf_counter()
+    p = plan.params
+    if progress:
+        progress(f"layered profile: {p.n_layers} layers, RGB projection")
+    vol = volume_layers(plan, p.n_layers)
+    prof = vol["profile"]
+    wl = prof.wavelengths_nm
+    strength, colour = sun_lamp(prof.solar_irradiance, wl)  # extraterrestrial: Cycles attenuates it
+    # exposure: the same rule as Environment mode, from a small core render of the same sky
+    if progress:
+        progress("small spectral render for the exposure")
+    cam = core("render.cameras").make_camera("equirectangular", EXPOSURE_IMAGE_WIDTH, center_azimuth_deg=90.0,
+                                             n_wavelengths=wl.size)
+    img = core("render.sky").render_sky(prof, cam, plan.sun_elevation_deg, plan.sun_azimuth_deg, 0.0, "preview",
+                                        include_sun=False)
+    from .physics import fit_into_gamut
+
+    rgb = fit_into_gamut(spectrum_rgb(img.radiance, wl))
+    s_obs, _ = sun_lamp(img.sun_irradiance, wl)
+    e_h = horizontal_illuminance(rgb, cam, s_obs, plan.sun_elevation_deg)
+    res = SkyResult(mode="VOLUMETRIC", sun_elevation_deg=plan.sun_elevation_deg,
+                    sun_azimuth_deg=plan.sun_azimuth_deg, sun_strength=strength, sun_colour=colour,
+                    sun_angle_deg=plan.sun_angular_diameter_deg(), exposure=exposure_from_illuminance(e_h))
+    res.layers = vol
+    res.ground_albedo_rgb = tuple(vol["ground_albedo_rgb"])
+    h = rgb.shape[0]
+    luma = rgb @ np.array([0.2126, 0.7152, 0.0722])
+    res.info = {"compute_s": time.perf_counter() - t0, "balls": len(vol["balls"]), "shells": len(vol["shells"]),
+                "zenith_Y_core": float(luma[0].mean()), "horizon_Y_core": float(luma[h // 2 - 1].mean()),
+                "sun_observer_Y": s_obs, "horizontal_illuminance_Y": e_h, "phases": vol["phases"],
+                "sag": sag_report(prof.planet_radius_m)}
+    return res
+
+
+# --------------------------------------------------------------------------- scene
+
+
+def _mesh_from_arrays(tx, name, verts, top, quads, bot):
+    import bpy  # noqa: F401
+
+    me = tx.new("meshes", name)
+    n_poly = top.shape[0] + quads.shape[0] + bot.shape[0]
+    loops = np.concatenate([top.ravel(), quads.ravel(), bot.ravel()]).astype(np.int32)
+    sizes = np.concatenate([np.full(top.shape[0], 3), np.full(quads.shape[0], 4), np.full(bot.shape[0], 3)])
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int32)
+    me.vertices.add(verts.shape[0])
+    me.vertices.foreach_set("co", verts.astype(np.float32).ravel())
+    me.loops.add(loops.size)
+    me.loops.foreach_set("vertex_index", loops)
+    me.polygons.add(n_poly)
+    me.polygons.foreach_set("loop_start", starts)
+    me.update(calc_edges=True)
+    return me
+
+
+def _join_arrays(a, b):
+    """Two sphere surfaces (outer, inner inverted) into one closed shell mesh."""
+    va, ta, qa, ba = a
+    vb, tb, qb, bb = b
+    off = va.shape[0]
+    return (np.concatenate([va, vb]), np.concatenate([ta, tb + off]), np.concatenate([qa, qb + off]),
+            np.concatenate([ba, bb + off]))
+
+
+def _volume_material(tx, name, absorption, scatter: dict, phases: dict):
+    mat = tx.new("materials", name)
+    nt = mat.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    out.location = (600, 0)
+    closures = []
+    y = 0
+
+    def coeff_node(label, phase, g=0.0, sca=(0, 0, 0), ab=(0, 0, 0)):
+        nonlocal y
+        n = nt.nodes.new("ShaderNodeVolumeCoefficients")
+        n.label = label
+        n.location = (0, y)
+        y -= 320
+        n.phase = phase
+        if phase == "HENYEY_GREENSTEIN":
+            n.inputs["Anisotropy"].default_value = float(g)
+        n.inputs["Scatter Coefficients"].default_value = tuple(float(v) for v in sca)
+        n.inputs["Absorption Coefficients"].default_value = tuple(float(v) for v in ab)
+        closures.append(n.outputs[0])
+
+    ray = scatter.get("rayleigh", (0.0, 0.0, 0.0))
+    coeff_node("Molecules (Rayleigh) + absorption", "RAYLEIGH", sca=ray, ab=absorption or (0.0, 0.0, 0.0))
+    for key in ("aerosol0", "aerosol1"):
+        if key in scatter and phases.get(key):
+            f = phases[key]
+            s = np.asarray(scatter[key])
+            coeff_node(f"{key}: forward lobe g={f['g1']:.3f}", "HENYEY_GREENSTEIN", f["g1"], s * f["w"])
+            if f.get("lobes", 2) == 2 and f["w"] < 1.0:
+                coeff_node(f"{key}: backward lobe g={f['g2']:.3f}", "HENYEY_GREENSTEIN", f["g2"], s * (1 - f["w"]))
+    acc = closures[0]
+    for k, sock in enumerate(closures[1:]):
+        add = nt.nodes.new("ShaderNodeAddShader")
+        add.location = (300, -160 * k)
+        nt.links.new(acc, add.inputs[0])
+        nt.links.new(sock, add.inputs[1])
+        acc = add.outputs[0]
+    nt.links.new(acc, out.inputs["Volume"])
+    return mat
+
+
+def _ground_material(tx, albedo_rgb):
+    mat = tx.new("materials", "Skymodel Ground")
+    nt = mat.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    out.location = (300, 0)
+    bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    bsdf.inputs["Color"].default_value = (*[float(a) for a in albedo_rgb], 1.0)
+    nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    mat.diffuse_color = (*[float(a) for a in albedo_rgb], 1.0)
+    return mat
+
+
+def _object(tx, coll, name, mesh, material):
+    obj = tx.new("objects", name, mesh)
+    mesh.materials.append(material)
+    obj.display_type = "WIRE" if name.endswith("Ground") else "BOUNDS"
+    obj.hide_select = True
+    tx.link_object(coll, obj)
+    return obj
+
+
+def apply(scene, world, settings, result, progress=None):
+    """Volumetric mode scene: black world, sun lamp, balls, shells, ground, Cycles settings."""
+    from . import builder
+
+    vol = result.layers
+    R = float(vol["profile"].planet_radius_m)
+    thetas = ring_angles(R)
+    tx = builder.Transaction()
+    try:
+        if progress:
+            progress(f"meshes: {len(vol['balls'])} balls, {len(vol['shells'])} shells, ground "
+                     f"({(thetas.size - 1) * SEGMENTS} faces each)")
+        coll = builder._ensure_collection(tx, scene)
+        sun = builder._new_sun(tx, result)
+        tx.link_object(coll, sun)
+        for i, ball in enumerate(vol["balls"]):
+            name = f"Skymodel Atmosphere {i:02d}"
+            me = _mesh_from_arrays(tx, name, *sphere_arrays(R + ball["top_m"], -R, thetas))
+            mat = _volume_material(tx, name, ball["absorption"], ball["scatter"], vol["phases"])
+            obj = _object(tx, coll, name, me, mat)
+            obj["skymodel_top_m"] = ball["top_m"]
+        for i, sh in enumerate(vol["shells"]):
+            name = f"Skymodel Shell {i:02d}"
+            arrays = _join_arrays(sphere_arrays(R + sh["top_m"], -R, thetas),
+                                  sphere_arrays(R + sh["bottom_m"], -R, thetas, inward=True))
+            me = _mesh_from_arrays(tx, name, *arrays)
+            mat = _volume_material(tx, name, None, sh["scatter"], vol["phases"])
+            obj = _object(tx, coll, name, me, mat)
+            obj["skymodel_bottom_m"], obj["skymodel_top_m"] = sh["bottom_m"], sh["top_m"]
+        me = _mesh_from_arrays(tx, "Skymodel Ground", *sphere_arrays(R, -R - GROUND_DROP_M, thetas))
+        _object(tx, coll, "Skymodel Ground", me, _ground_material(tx, result.ground_albedo_rgb))
+        builder._black_world_nodes(tx, world)
+        tx.set(scene.render, "engine", "CYCLES")
+        cyc = scene.cycles
+        nb = int(settings.volume_bounces)
+        tx.set(cyc, "volume_bounces", nb)
+        tx.set(cyc, "max_bounces", max(int(cyc.max_bounces), nb + 4))
+        crossings = 2 * (len(vol["balls"]) + 2 * len(vol["shells"])) + 16  # boundaries are transparent bounces
+        tx.set(cyc, "transparent_max_bounces", max(int(cyc.transparent_max_bounces), crossings))
+        if scene.camera is not None and scene.camera.type == "CAMERA":
+            tx.set(scene.camera.data, "clip_end", max(float(scene.camera.data.clip_end), 2.0e7))
+        if settings.set_exposure:
+            builder._view_settings(tx, scene, result.exposure)
+        builder._write_info(tx, settings, result)
+        builder._fail_hook("after_swap")
+    except BaseException:
+        tx.rollback()
+        raise
+    builder.remove_previous(scene, world, tx.build_id)
+    builder.commit_names(tx)
+    return tx.build_id
