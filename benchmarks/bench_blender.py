@@ -40,8 +40,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from common import machine  # noqa: E402
 
-PSEUDO_WL = np.array([450.0, 550.0, 650.0])  # stand for B, G, R
-TO_RGB = [2, 1, 0]
+from blender_addon.volumetric import TO_RGB, rgb_model_profile  # noqa: E402
 
 
 def _plan(location, month, elevation, azimuth=180.0, n_layers=8, mode="VOLUMETRIC"):
@@ -49,39 +48,6 @@ def _plan(location, month, elevation, azimuth=180.0, n_layers=8, mode="VOLUMETRI
 
     return physics.resolve(physics.SkyParams(location=location, month=month, sun_elevation_deg=elevation,
                                              sun_azimuth_deg=azimuth, mode=mode, n_layers=n_layers))
-
-
-def rgb_model_profile(vol):
-    """The medium the Cycles volumes hold, as a core LayeredProfile on 3 pseudo-wavelengths."""
-    from blender_addon.volumetric import project
-    from skymodel.phase_fit import hg
-    from skymodel.profile import LayeredProfile
-
-    lay, w, prof = vol["layered"], vol["weights"], vol["profile"]
-
-    def P(a):
-        return project(a, w)[..., TO_RGB]
-
-    angles = prof.aerosol_phase_angles_deg
-    mu = np.cos(np.radians(angles))
-    tables = []
-    for r in range(prof.aerosol_phase.shape[0]):
-        f = vol["phases"].get(f"aerosol{r}")
-        if f is None:
-            t = np.full(angles.shape, 1 / (4 * np.pi))
-        else:
-            t = f["w"] * hg(mu, f["g1"]) + (1 - f["w"]) * hg(mu, f["g2"])
-        tables.append(np.repeat(t[:, None], 3, axis=1))
-    from blender_addon.physics import spectrum_rgb
-
-    sun_rgb = spectrum_rgb(prof.solar_irradiance, prof.wavelengths_nm)
-    return LayeredProfile(
-        wavelengths_nm=PSEUDO_WL, rayleigh_depolarization=np.zeros(3), aerosol_phase_angles_deg=angles,
-        aerosol_phase=np.stack(tables), ground_albedo=np.asarray(vol["ground_albedo_rgb"])[TO_RGB],
-        solar_irradiance=sun_rgb[TO_RGB], planet_radius_m=prof.planet_radius_m, top_altitude_m=lay.top_altitude_m,
-        edges_m=lay.edges_m, rayleigh_scattering=P(lay.rayleigh_scattering), ozone_absorption=P(lay.ozone_absorption),
-        aerosol_scattering_by_regime=np.stack([P(a) for a in lay.aerosol_scattering_by_regime]),
-        aerosol_absorption=P(lay.aerosol_absorption))
 
 
 def _stats(rgb_test, rgb_ref, cam):

@@ -255,6 +255,45 @@ def volume_layers(plan, n_layers: int):
     }
 
 
+#: Pseudo-wavelengths of :func:`rgb_model_profile` (B, G, R order) and the index that reorders to R, G, B.
+PSEUDO_WL = np.array([450.0, 550.0, 650.0])
+TO_RGB = [2, 1, 0]
+
+
+def rgb_model_profile(vol):
+    """The medium the Cycles volumes hold, as a core ``LayeredProfile`` on three pseudo-wavelengths
+    (``PSEUDO_WL``, standing for B, G, R: reorder a result with ``[..., TO_RGB]``): the projected
+    RGB coefficients of every layer, Rayleigh without depolarisation (Cycles' RAYLEIGH phase), the
+    fitted aerosol lobes and the RGB extraterrestrial sun. The core's marcher renders it for a
+    like-for-like comparison with Cycles (``tests/test_addon.py``, ``benchmarks/bench_blender.py``)."""
+    hg = core("phase_fit").hg
+    LayeredProfile = core("profile").LayeredProfile
+
+    lay, w, prof = vol["layered"], vol["weights"], vol["profile"]
+
+    def P(a):
+        return project(a, w)[..., TO_RGB]
+
+    angles = prof.aerosol_phase_angles_deg
+    mu = np.cos(np.radians(angles))
+    tables = []
+    for r in range(prof.aerosol_phase.shape[0]):
+        f = vol["phases"].get(f"aerosol{r}")
+        if f is None:
+            t = np.full(angles.shape, 1 / (4 * np.pi))
+        else:
+            t = f["w"] * hg(mu, f["g1"]) + (1 - f["w"]) * hg(mu, f["g2"])
+        tables.append(np.repeat(t[:, None], 3, axis=1))
+    sun_rgb = spectrum_rgb(prof.solar_irradiance, prof.wavelengths_nm)
+    return LayeredProfile(
+        wavelengths_nm=PSEUDO_WL, rayleigh_depolarization=np.zeros(3), aerosol_phase_angles_deg=angles,
+        aerosol_phase=np.stack(tables), ground_albedo=np.asarray(vol["ground_albedo_rgb"])[TO_RGB],
+        solar_irradiance=sun_rgb[TO_RGB], planet_radius_m=prof.planet_radius_m, top_altitude_m=lay.top_altitude_m,
+        edges_m=lay.edges_m, rayleigh_scattering=P(lay.rayleigh_scattering), ozone_absorption=P(lay.ozone_absorption),
+        aerosol_scattering_by_regime=np.stack([P(a) for a in lay.aerosol_scattering_by_regime]),
+        aerosol_absorption=P(lay.aerosol_absorption))
+
+
 def compute(plan, cache_dir=None, progress=None) -> SkyResult:
     """Everything the volumetric scene needs (no bpy)."""
     t0 = time.perf_counter()
