@@ -126,7 +126,7 @@ def _machine_lines() -> list[str]:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--write", action="store_true", help="update docs/benchmarks-mie.md")
+    ap.add_argument("--write", action="store_true", help="update docs/benchmarks.md")
     ap.add_argument("--repeat", type=int, default=5, help="timed repeats per method (>= 5)")
     ap.add_argument("--n-points", type=int, default=2000)
     ap.add_argument("--m", type=complex, default=1.5 + 0.01j, help="refractive index n+ik (k >= 0)")
@@ -192,7 +192,7 @@ def main(argv=None):
     ])
     print(body)
     if args.write:
-        update_section(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "docs", "benchmarks-mie.md"),
+        update_section(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "docs", "benchmarks.md"),
                        HEADING, body)
 
 
