@@ -3,6 +3,8 @@
     python benchmarks/bench_blender.py projection [--location desert --elevations 60,20,5,1]
     python benchmarks/bench_blender.py cycles     [--size 128x64 --samples 256 --layers 8]
     python benchmarks/bench_blender.py timings
+    python benchmarks/bench_blender.py crossval   [--without-fixes]
+    python benchmarks/bench_blender.py issue      [--write]   (~10 min on a loaded 2-core machine)
 
 ``projection`` (no bpy): what Cycles is asked to render vs the spectral truth, both
 computed by the core's marcher so that no Monte Carlo noise enters:
@@ -19,6 +21,23 @@ model (same directions): the error of geometry, layering into meshes and Cycles'
 transport (volume bounces) on top of the projection.
 
 ``timings``: Build Sky in both modes and a small Cycles render of each.
+
+``crossval`` (bpy): the case of ``tests/test_addon_crossval.py`` with its numbers: Cycles / marcher
+per region, the Monte Carlo noise, and the marcher's own error (test settings vs a 4096-node march
+with finer sun tables); ``--without-fixes`` renders it with the add-on's two Cycles fixes switched
+off (volume apex on the axis, species' own coefficients in the closures) to show what they fix.
+
+``issue`` (bpy): the benchmarks of issue 4, written to docs/benchmarks.md (section "Blender")
+with ``--write``:
+
+* Build Sky in environment mode at each quality (cold cache: the core's spectral render and the
+  EXR; the Blender side adds < 1 s);
+* a volumetric Cycles render at 256x128 for 16/64/256 samples (single scattering, the
+  cross-validation medium), its time and its difference from the marcher's image of the same
+  RGB shells (per region, with the noise, and per pixel);
+* aerial perspective: a grey (albedo 0.5) diffuse square 1, 10 and 50 km away, seen at the
+  horizon with a narrow camera, in environment mode (no air between) and volumetric mode,
+  against the marcher's ``T(d) L_surface + L_path(d)`` along the same line of sight.
 """
 
 from __future__ import annotations
@@ -109,7 +128,7 @@ def projection(args):
     return out
 
 
-def _bpy_scene(location, month, elevation, mode, layers, bounces, width, samples, azimuth=180.0):
+def _bpy_scene(location, month, elevation, mode, layers, bounces, width, samples, azimuth=180.0, center_azimuth=None):
     import bpy
 
     import blender_addon
@@ -120,10 +139,14 @@ def _bpy_scene(location, month, elevation, mode, layers, bounces, width, samples
     opts = headless.parse_args(["--location", location, "--month", str(month), "--sun-elevation", str(elevation),
                                 "--sun-azimuth", str(azimuth), "--mode", mode, "--layers", str(layers),
                                 "--volume-bounces", str(bounces), "--samples", str(samples),
-                                "--size", f"{width}x{width // 2}", "--out", os.path.join(tempfile.mkdtemp(), "x.png")])
+                                "--size", f"{width}x{width // 2}", "--out", os.path.join(tempfile.mkdtemp(), "x.png")]
+                               + ([] if center_azimuth is None else ["--center-azimuth", str(center_azimuth)]))
     t0 = time.perf_counter()
     scene = headless.build_scene(opts)
     t_build = time.perf_counter() - t0
+    if center_azimuth is not None:  # a measurement: each pixel the mean over its own footprint
+        scene.cycles.pixel_filter_type = "BOX"
+        scene.cycles.filter_width = 1.0
     t0 = time.perf_counter()
     rgb = headless.render_linear(scene)
     return rgb, t_build, time.perf_counter() - t0
@@ -136,8 +159,9 @@ def cycles(args):
 
     out = {"machine": machine(), "cases": []}
     for el in args.elevations:
+        # same pixel directions as the core camera below (centre azimuth 90)
         rgb_c, tb, tr = _bpy_scene(args.location, args.month, el, "volumetric", args.layers, args.bounces,
-                                   args.width, args.samples)
+                                   args.width, args.samples, center_azimuth=90.0)
         plan = _plan(args.location, args.month, el, n_layers=args.layers)
         vol = volumetric.volume_layers(plan, args.layers)
         cam = make_camera("equirectangular", args.width, center_azimuth_deg=90.0)
@@ -174,9 +198,346 @@ def timings(args):
     return out
 
 
+# --------------------------------------------------------------------------- issue 4 benchmarks
+
+LUMA = np.array([0.2126, 0.7152, 0.0722])
+
+
+def _crossval_module():
+    sys.path.insert(0, str(ROOT / "tests"))
+    import test_addon_crossval as T
+
+    return T
+
+
+def _region_table(c1, c2, model, masks):
+    out = {}
+    for name, mask in masks.items():
+        n = int(mask.sum())
+        c = 0.5 * (c1 + c2)[mask].mean(axis=0)
+        sigma = np.sqrt((0.25 * (c1 - c2)[mask] ** 2).mean(axis=0) / n)
+        m = model[mask].mean(axis=0)
+        out[name] = {"pixels": n, "cycles_over_marcher_minus_1_pct": [round(float(v), 2) for v in 100 * (c / m - 1)],
+                     "noise_1sigma_pct": [round(float(v), 2) for v in 100 * sigma / m]}
+    return out
+
+
+def crossval(args):
+    """The test case, with its numbers (and optionally without the add-on's two fixes)."""
+    T = _crossval_module()
+    from blender_addon import volumetric
+
+    if args.without_fixes:
+        plain_sphere = volumetric.sphere_arrays
+        volumetric.sphere_arrays = lambda *a, **k: plain_sphere(*a, **dict(k, apex_off_axis=False))
+        volumetric.closure_split = lambda species, u: [np.maximum(np.asarray(c, float), 0.0) for c in species]
+    t0 = time.perf_counter()
+    gen = T.cycles_images.__wrapped__()
+    c1, c2 = next(gen)
+    t_cycles = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    model = T.marcher_image.__wrapped__()
+    t_marcher = time.perf_counter() - t0
+    masks = T.regions(T.HEIGHT, T.WIDTH)
+    out = {"machine": machine(), "case": T.CASE, "without_fixes": bool(args.without_fixes),
+           "cycles_s": round(t_cycles, 1), "marcher_s": round(t_marcher, 1),
+           "regions": _region_table(c1, c2, model, masks)}
+    # the marcher's own error: the test's settings vs a converged march (same directions)
+    from skymodel.render import marcher as marcher_module
+
+    fine_settings = marcher_module.MarchSettings
+    T.VIEW_STEPS = 4096
+    marcher_module.MarchSettings = lambda **k: fine_settings(**k, sun_table_altitudes=256, sun_table_x=384,
+                                                              sun_table_steps=640)
+    try:
+        fine = T.marcher_image.__wrapped__()
+    finally:
+        marcher_module.MarchSettings = fine_settings
+    out["marcher_test_settings_vs_converged_pct"] = {
+        name: [round(float(v), 3) for v in 100 * (model[m].mean(axis=0) / fine[m].mean(axis=0) - 1)]
+        for name, m in masks.items()}
+    out["cycles_vs_converged_marcher"] = _region_table(c1, c2, fine, masks)
+    for _ in gen:
+        pass
+    print(json.dumps(out, indent=1), flush=True)
+    return out
+
+
+def _env_build_times(qualities):
+    """Build Sky (environment mode) at each quality, cold cache, through the headless module."""
+    from blender_addon.core import input_error_class
+
+    rows = []
+    for q in qualities:
+        os.environ["SKYMODEL_CACHE_DIR"] = tempfile.mkdtemp(prefix="skymodel-bench-cache-")
+        import bpy
+
+        from blender_addon import physics
+        from blender_addon import render as headless
+
+        headless._ensure_registered()
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        headless._ensure_registered()
+        o = headless.parse_args(["--location", "rural", "--month", "6", "--sun-elevation", "30", "--mode",
+                                 "environment", "--quality", q, "--out", os.path.join(tempfile.mkdtemp(), "x.png")])
+        w = physics.IMAGE_WIDTH[q]
+        row = {"quality": q, "image": f"{w}x{w // 2}", "wavelength_step_nm": physics.WAVELENGTH_STEP_NM[q]}
+        t0 = time.perf_counter()
+        try:
+            headless.build_scene(o, progress=None)
+            row["build_s"] = round(time.perf_counter() - t0, 1)
+        except input_error_class() as ex:  # e.g. the core's memory guard
+            row["refused"] = str(ex)
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    return rows
+
+
+def _volumetric_sweep(samples_list, width):
+    """Cycles at width x width/2 for each sample count vs the marcher on the same RGB shells."""
+    import bpy
+
+    T = _crossval_module()
+    from blender_addon import physics, volumetric
+    from blender_addon import render as headless
+    from skymodel.render.marcher import MarchSettings, SkyMarcher
+
+    h = width // 2
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    headless._ensure_registered()
+    c = T.CASE
+    o = headless.parse_args([
+        "--location", c["location"], "--month", str(c["month"]), "--sun-elevation", str(c["sun_elevation"]),
+        "--sun-azimuth", str(c["sun_azimuth"]), "--aerosol", c["aerosol"], "--albedo", "0", "--mode", "volumetric",
+        "--layers", str(c["layers"]), "--volume-bounces", "0", "--size", f"{width}x{h}",
+        "--camera-height", str(T.CAMERA_HEIGHT_M), "--center-azimuth", str(T.CENTER_AZIMUTH),
+        "--out", os.path.join(tempfile.mkdtemp(), "x.png")])
+    t0 = time.perf_counter()
+    scene = headless.build_scene(o, progress=None)
+    t_build = time.perf_counter() - t0
+    scene.cycles.pixel_filter_type = "BOX"
+    scene.cycles.filter_width = 1.0
+    plan = physics.resolve(physics.SkyParams(location=c["location"], month=c["month"],
+                                             sun_elevation_deg=c["sun_elevation"], sun_azimuth_deg=c["sun_azimuth"],
+                                             aerosol=c["aerosol"], albedo=0.0, mode="VOLUMETRIC", n_layers=c["layers"]))
+    prof = volumetric.rgb_model_profile(volumetric.volume_layers(plan, c["layers"]))
+    t0 = time.perf_counter()
+    m = SkyMarcher(prof, c["sun_elevation"], c["sun_azimuth"], T.CAMERA_HEIGHT_M,
+                   MarchSettings(orders=1, exact=True, view_steps=T.VIEW_STEPS))
+    ii, jj = np.meshgrid(np.arange(h), np.arange(width), indexing="ij")
+    d = T.pixel_directions(ii.ravel(), jj.ravel(), h, width, T.CENTER_AZIMUTH)[:, 0]
+    model = m.radiance(d).radiance[:, volumetric.TO_RGB].reshape(h, width, 3)
+    t_marcher = time.perf_counter() - t0
+    masks = T.regions(h, width)
+    sky = np.zeros((h, width), bool)
+    sky[: h // 2] = True
+    rows = []
+    for spp in samples_list:
+        scene.cycles.samples = int(spp)
+        imgs, times = [], []
+        for seed in (1, 2):
+            scene.cycles.seed = seed
+            t0 = time.perf_counter()
+            imgs.append(headless.render_linear(scene).astype(float))
+            times.append(time.perf_counter() - t0)
+        y1, ym = imgs[0] @ LUMA, model @ LUMA
+        row = {"samples": int(spp), "render_s": round(min(times), 1), "build_s": round(t_build, 1),
+               "marcher_s": round(t_marcher, 1),
+               "pixel_Y_rel_rms_pct": round(float(100 * np.sqrt(np.mean((y1[sky] / ym[sky] - 1) ** 2))), 2),
+               "regions": _region_table(imgs[0], imgs[1], model, masks)}
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    return rows
+
+
+def _line_of_sight(prof, marcher, direction, distance_m, observer_m, n=4000):
+    """Marcher pieces along a finite line of sight (RGB, the profile's B, G, R order):
+    transmittance T and single-scattering path radiance L_path from 0 to ``distance_m``."""
+    from skymodel.render.rays import altitude_along
+
+    R = prof.planet_radius_m
+    p = np.array([0.0, 0.0, R + observer_m])
+    ds = distance_m / n
+    s = (np.arange(n) + 0.5) * ds
+    h = altitude_along(p[None], direction[None], s[None], R)[0]
+    x = p + s[:, None] * direction
+    up = x / np.linalg.norm(x, axis=1, keepdims=True)
+    med = prof.sample(np.maximum(h, 0.0))
+    ext = med.extinction
+    tau = np.cumsum(ext * ds, axis=0) - 0.5 * ext * ds
+    t_sun = marcher.sun_table.transmittance(h, up @ marcher.sun, which=0)
+    cos_t = float(direction @ marcher.sun)
+    scat = med.rayleigh_scattering * prof.rayleigh_phase(np.array(cos_t))
+    pa = prof.aerosol_phase_at(np.array(cos_t))
+    for r in range(med.aerosol_scattering_by_regime.shape[0]):
+        scat = scat + med.aerosol_scattering_by_regime[r] * pa[r]
+    path = prof.solar_irradiance * (np.exp(-tau) * t_sun * scat * ds).sum(axis=0)
+    return np.exp(-(ext * ds).sum(axis=0)), path, float(h[-1])
+
+
+def _aerial(distances_km, samples, layers, albedo=0.5, half_angle_deg=2.0):
+    """A grey square at each distance, north of the camera (the sun in the south lights its
+    face), centred on the horizontal line of sight; environment vs volumetric vs marcher."""
+    import bpy
+
+    from blender_addon import physics, volumetric
+    from blender_addon import render as headless
+    from skymodel.render.marcher import MarchSettings, SkyMarcher
+
+    el, az = 30.0, 180.0
+    cam_h = 1.7
+    rows = []
+    plan = physics.resolve(physics.SkyParams(location="rural", month=6, sun_elevation_deg=el, sun_azimuth_deg=az,
+                                             albedo=0.0, mode="VOLUMETRIC", n_layers=layers))
+    vol = volumetric.volume_layers(plan, layers)
+    prof = volumetric.rgb_model_profile(vol)
+    marcher = SkyMarcher(prof, el, az, cam_h, MarchSettings(orders=1, exact=True, view_steps=512))
+    view = np.array([0.0, math.cos(math.radians(0.5)), math.sin(math.radians(0.5))])  # the rows averaged
+    sky_behind = marcher.radiance(view[None]).radiance[0]  # single scattering, to the end of the air
+    normal = np.array([0.0, -1.0, 0.0])
+    # single-scattered sky light on the object's face (with volume_bounces = 0 Cycles still
+    # lights a surface with light scattered once in the air along its diffuse rays): the
+    # marcher's radiance over a 128x64 grid of directions, cosine-weighted on the face's side
+    from skymodel.render.cameras import make_camera
+
+    grid = make_camera("equirectangular", 128)
+    gdirs, gvalid = grid.directions()
+    gcos = np.maximum(gdirs @ normal, 0.0) * gvalid
+    pick = gcos > 0
+    e_sky = (marcher.radiance(gdirs[pick]).radiance
+             * (gcos * grid.pixel_solid_angles())[pick][:, None]).sum(axis=0)
+    for mode in ("environment", "volumetric"):
+        for d_km in distances_km:
+            d = d_km * 1000.0
+            bpy.ops.wm.read_factory_settings(use_empty=True)
+            headless._ensure_registered()
+            o = headless.parse_args(["--location", "rural", "--month", "6", "--sun-elevation", str(el),
+                                     "--sun-azimuth", str(az), "--mode", mode, "--layers", str(layers),
+                                     "--volume-bounces", "0", "--samples", str(samples), "--size", "16x16",
+                                     "--albedo", "0",
+                                     "--camera-height", str(cam_h), "--out", os.path.join(tempfile.mkdtemp(), "x.png")])
+            scene = headless.build_scene(o, progress=None)
+            cam = scene.camera
+            cam.data.type = "PERSP"
+            cam.data.angle = math.radians(half_angle_deg)  # the square spans 2 x half_angle: fills the frame
+            cam.rotation_euler = (math.radians(90.0), 0.0, 0.0)  # look north, horizontally
+            side = 2.0 * d * math.tan(math.radians(half_angle_deg))
+            me = bpy.data.meshes.new("Target")
+            me.from_pydata([(-side / 2, 0, -side / 2), (side / 2, 0, -side / 2), (side / 2, 0, side / 2),
+                            (-side / 2, 0, side / 2)], [], [(0, 1, 2, 3)])
+            mat = bpy.data.materials.new("Grey")
+            nt = mat.node_tree
+            nt.nodes.clear()
+            bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
+            bsdf.inputs["Color"].default_value = (albedo, albedo, albedo, 1.0)
+            nt.links.new(bsdf.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
+            me.materials.append(mat)
+            obj = bpy.data.objects.new("Target", me)
+            obj.location = (0.0, d, cam_h)
+            scene.collection.objects.link(obj)
+            scene.cycles.pixel_filter_type = "BOX"
+            scene.cycles.filter_width = 1.0
+            t0 = time.perf_counter()
+            img = headless.render_linear(scene).astype(float)
+            t_render = time.perf_counter() - t0
+            # rows above the image's centre line only (elevation 0.125-0.875 deg): below it the
+            # near ground hides the object
+            rgb = img[1:7, 4:12].reshape(-1, 3).mean(axis=0)
+            row = {"mode": mode, "distance_km": d_km, "samples": samples, "render_s": round(t_render, 1),
+                   "object_rgb": [round(float(v), 4) for v in rgb], "object_Y": round(float(rgb @ LUMA), 4)}
+            if mode == "volumetric":
+                t, path, h_obj = _line_of_sight(prof, marcher, view, d, cam_h)
+                up_obj = np.array([0.0, d, prof.planet_radius_m + cam_h])
+                up_obj /= np.linalg.norm(up_obj)
+                e_obj = prof.solar_irradiance * marcher.sun_table.transmittance(
+                    np.array([h_obj]), np.array([up_obj @ marcher.sun]))[0]
+                surface = albedo / math.pi * (e_obj * max(float(normal @ marcher.sun), 0.0) + e_sky)
+                model = (t * surface + path)[volumetric.TO_RGB]
+                row.update({"marcher_rgb": [round(float(v), 4) for v in model],
+                            "cycles_over_marcher_minus_1_pct": [round(float(v), 2) for v in 100 * (rgb / model - 1)],
+                            "transmittance_rgb": [round(float(v), 4) for v in t[volumetric.TO_RGB]],
+                            "path_share_Y": round(float((path[volumetric.TO_RGB] @ LUMA) / (model @ LUMA)), 3),
+                            "contrast_vs_horizon_sky_Y": round(float(
+                                (rgb @ LUMA) / (sky_behind[volumetric.TO_RGB] @ LUMA) - 1), 3)})
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    return rows
+
+
+def _issue_markdown(res) -> str:
+    from common import git_revision
+
+    lines = [f"Machine: {res['machine']}; revision {git_revision()}; {res['date']}. Wall-clock seconds on a 2-core "
+             f"machine shared with other jobs (`nice -n 10`): treat them as upper bounds.", "",
+             "Command:", "", f"    {res['command']}", "",
+             "**Build Sky, environment mode** (rural, June, sun 30°; cold cache: the core's spectral render "
+             "of the equirectangular image and the EXR; through `blender_addon.render.build_scene`):", "",
+             "| quality | image | wavelength step | build time |", "|---|---|---|---|"]
+    for r in res["environment"]:
+        took = f"{r['build_s']:.1f} s" if "build_s" in r else f"refused: {r['refused']}"
+        lines.append(f"| {r['quality']} | {r['image']} | {r['wavelength_step_nm']:g} nm | {took} |")
+    v = res["volumetric"]
+    lines += ["", f"**Volumetric Cycles render, 256×128** (the cross-validation medium of "
+              f"`tests/test_addon_crossval.py`: rural, June, sun 30°, no tropospheric aerosol, 2 layers, "
+              f"single scattering; CPU; build {v[0]['build_s']:.1f} s; the marcher's image of the same RGB shells "
+              f"took {v[0]['marcher_s']:.1f} s). Difference from the marcher per region (R, G, B; mean of two "
+              f"seeds) with the 1σ Monte Carlo noise of that mean, and the per-pixel luminance rms (one seed, "
+              f"noise-dominated):", "",
+              "| samples | render time | zenith: Cycles/marcher − 1 (noise) | horizon band | sun side | per-pixel Y rms |",
+              "|---|---|---|---|---|---|"]
+    for r in v:
+        cells = []
+        for name in ("zenith", "horizon", "sun side"):
+            g = r["regions"][name]
+            cells.append(", ".join(f"{x:+.2f}" for x in g["cycles_over_marcher_minus_1_pct"])
+                         + f" % (±{max(g['noise_1sigma_pct']):.2f} %)")
+        lines.append(f"| {r['samples']} | {r['render_s']:.1f} s | " + " | ".join(cells)
+                     + f" | {r['pixel_Y_rel_rms_pct']:.1f} % |")
+    lines += ["", "**Environment vs volumetric: aerial perspective.** A grey (albedo 0.5) diffuse square "
+              "north of the camera, centred on the horizontal line of sight, filling a 2° camera (16×16 px; the "
+              "object's colour is the mean of the pixels 0.1–0.9° above the horizon, the marcher's line of sight "
+              "0.5° up; "
+              f"{res['aerial'][0]['samples']} samples, single scattering); rural aerosol, 8 layers, sun 30° in the "
+              "south lighting its face, ground albedo 0. Environment mode lights the object with the sun lamp "
+              "and the sky image (all orders of scattering) and has no air between the camera and the object; "
+              "volumetric mode lights it with the sun through the shells and the light its diffuse rays pick "
+              "up scattered once in the air, and has the shells in front of it. The marcher's prediction is "
+              "`T(d) L_surface + L_path(d)` on the same RGB medium (sun and single-scattered sky light on the "
+              "object's face, single-scattering path radiance). Contrast is object Y / horizon sky Y − 1 "
+              "(sky: the marcher, single scattering).", "",
+              "| distance | environment: object RGB | volumetric: object RGB | marcher RGB | Cycles/marcher − 1 | "
+              "transmittance (G) | path share of Y | contrast (volumetric) | render time env / vol |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    env = {r["distance_km"]: r for r in res["aerial"] if r["mode"] == "environment"}
+    for r in (r for r in res["aerial"] if r["mode"] == "volumetric"):
+        e = env[r["distance_km"]]
+        fmt = lambda v: ", ".join(f"{x:.3f}" for x in v)  # noqa: E731
+        lines.append(f"| {r['distance_km']:g} km | {fmt(e['object_rgb'])} | {fmt(r['object_rgb'])} | "
+                     f"{fmt(r['marcher_rgb'])} | " + ", ".join(f"{x:+.1f}" for x in r["cycles_over_marcher_minus_1_pct"])
+                     + f" % | {r['transmittance_rgb'][1]:.3f} | {r['path_share_Y']:.2f} | "
+                     f"{r['contrast_vs_horizon_sky_Y']:+.2f} | {e['render_s']:.1f} s / {r['render_s']:.1f} s |")
+    return "\n".join(lines)
+
+
+def issue(args):
+    import datetime as dt
+
+    from common import command_line
+
+    res = {"machine": machine(), "command": command_line(), "date": dt.date.today().isoformat()}
+    res["environment"] = _env_build_times(args.qualities)
+    res["volumetric"] = _volumetric_sweep(args.sweep_samples, 256)
+    res["aerial"] = _aerial(args.distances, args.aerial_samples, 8)
+    if args.write:
+        from common import update_section
+
+        update_section(str(ROOT / "docs" / "benchmarks.md"), "## Blender", _issue_markdown(res))
+    return res
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("what", choices=["projection", "cycles", "timings"])
+    ap.add_argument("what", choices=["projection", "cycles", "timings", "crossval", "issue"])
     ap.add_argument("--location", default="desert")
     ap.add_argument("--month", type=int, default=1)
     ap.add_argument("--elevations", type=lambda t: [float(v) for v in t.split(",")], default=[60.0, 20.0, 5.0, 1.0])
@@ -186,8 +547,15 @@ def main(argv=None):
     ap.add_argument("--width", type=int, default=128)
     ap.add_argument("--quality", default="final")
     ap.add_argument("--json", default=None, help="write the results here")
+    ap.add_argument("--without-fixes", action="store_true", help="crossval: switch the add-on's two fixes off")
+    ap.add_argument("--qualities", type=lambda t: t.split(","), default=["preview", "final", "reference"])
+    ap.add_argument("--sweep-samples", type=lambda t: [int(v) for v in t.split(",")], default=[16, 64, 256])
+    ap.add_argument("--distances", type=lambda t: [float(v) for v in t.split(",")], default=[1.0, 10.0, 50.0])
+    ap.add_argument("--aerial-samples", type=int, default=64)
+    ap.add_argument("--write", action="store_true", help="issue: update docs/benchmarks.md (section Blender)")
     args = ap.parse_args(argv)
-    res = {"projection": projection, "cycles": cycles, "timings": timings}[args.what](args)
+    res = {"projection": projection, "cycles": cycles, "timings": timings, "crossval": crossval,
+           "issue": issue}[args.what](args)
     if args.json:
         Path(args.json).write_text(json.dumps(res, indent=1))
     return 0

@@ -46,6 +46,11 @@ RGB projection
     irradiance (strength E_Y, colour RGB(E) / E_Y): Cycles attenuates it through the
     volumes. The error of this projection against the spectral renderer is measured by
     ``benchmarks/bench_blender.py`` (docs/blender.md).
+
+    Where species overlap, Cycles mixes their phase functions with one weight per closure in
+    all channels, so each layer's scattering is split between the closures with one share per
+    species (:func:`closure_split`), luminance-weighted; :func:`rgb_model_profile` holds the
+    same split, and ``tests/test_addon_crossval.py`` checks Cycles against the marcher on it.
 """
 
 from __future__ import annotations
@@ -56,7 +61,8 @@ import time
 import numpy as np
 
 from .core import core
-from .physics import SkyResult, exposure_from_illuminance, horizontal_illuminance, spectrum_rgb, sun_lamp
+from .physics import (LUMA_709, SkyResult, exposure_from_illuminance, horizontal_illuminance, spectrum_rgb,
+                      sun_lamp)
 
 #: Spectral grid of the projection (nm).
 WAVELENGTH_STEP_NM = 10.0
@@ -74,6 +80,9 @@ GROUND_DROP_M = 0.01
 #: Cycles evaluates at most 64 closures at a point, summed over every volume that contains
 #: it (each ball around the camera + one shell); stay under this with some room.
 CLOSURE_BUDGET = 56
+#: Volume spheres: the apex of the top triangle fan sits this fraction of the first ring's
+#: polar angle off the Z axis (see :func:`sphere_arrays`).
+APEX_OFFSET = 0.3
 #: Size of the core render that sets the exposure in this mode.
 EXPOSURE_IMAGE_WIDTH = 128
 
@@ -110,15 +119,28 @@ def sag_report(radius_m: float = 6_360_000.0) -> dict:
 
 
 def sphere_arrays(radius_m: float, centre_z: float, thetas: np.ndarray, segments: int = SEGMENTS,
-                  inward: bool = False):
+                  inward: bool = False, apex_off_axis: bool = False):
     """Vertices (n, 3) float64 and polygons (triangle fans at the poles, quads between) of
-    a sphere with its first pole at the top (above the camera)."""
+    a sphere with its first pole at the top (above the camera).
+
+    ``apex_off_axis``: the apex of the top fan is moved off the Z axis, onto the sphere at
+    ``APEX_OFFSET`` of the first ring's polar angle and half a segment in azimuth, so that a
+    ray going straight up from a point on the axis meets the inside of one triangle, never
+    the vertex shared by all ``segments`` fan triangles. Cycles finds the volumes that
+    contain the camera with such a ray (a probe along +Z from the camera); through the
+    shared vertex the probe missed balls, and near the zenith whole fan sectors rendered
+    without the lowest layer (measured: -29 % in the top row of a 128x64 panorama; see
+    docs/blender.md). Used for every volume surface; the ground keeps its pole under the camera."""
     inner = thetas[1:-1]
     phi = np.arange(segments) * (2 * math.pi / segments)
     st, ct = np.sin(inner)[:, None], np.cos(inner)[:, None]
     ring = np.stack([radius_m * st * np.cos(phi), radius_m * st * np.sin(phi),
                      np.broadcast_to(radius_m * ct, (inner.size, segments))], axis=-1).reshape(-1, 3)
-    top = np.array([[0.0, 0.0, radius_m]])
+    if apex_off_axis:
+        ta, pa = APEX_OFFSET * thetas[1], math.pi / segments
+        top = radius_m * np.array([[math.sin(ta) * math.cos(pa), math.sin(ta) * math.sin(pa), math.cos(ta)]])
+    else:
+        top = np.array([[0.0, 0.0, radius_m]])
     bottom = np.array([[0.0, 0.0, -radius_m]])
     verts = np.concatenate([top, ring, bottom])
     verts[:, 2] += centre_z
@@ -166,6 +188,34 @@ def differences(b: np.ndarray) -> np.ndarray:
     return d
 
 
+def closure_split(species, channel_weights) -> list:
+    """Per-closure scatter coefficients that Cycles' phase mixing renders right in luminance.
+
+    Cycles mixes the phase functions of all scatter closures at a point with one weight per
+    closure, the mean of its RGB coefficient (its "sample weight"), the same in every
+    channel; the channel's total scattering coefficient is kept. Measured (docs/blender.md):
+    Rayleigh + a stratospheric HG lobe in one ball render like the marcher on a medium whose
+    aerosol share of scattering is mean(sigma_aer) / mean(sigma_s) in all three channels, not
+    sigma_aer,c / sigma_s,c per channel (-9 % in R, +3 % in B near the sun without this).
+
+    So each layer's species ``species`` (list of (n_layer, 3) coefficients) are re-split: the
+    total ``sigma_s,c`` stays per channel, and species k gets ``f_k sigma_s,c`` with the one
+    share ``f_k = sum_c u_c sigma_k,c / sum_c u_c sigma_s,c``, ``u = channel_weights`` (the
+    luminance weights times the sun's RGB): single scattering of sunlight then has the right
+    luminance at every scattering angle (optically thin limit), and the per-channel share is
+    what Cycles mixes anyway, so the marcher's RGB model (:func:`rgb_model_profile`) and
+    Cycles hold the same medium. The chroma of the aureole is what the split cannot keep."""
+    sp = [np.maximum(np.asarray(c, float), 0.0) for c in species]
+    total = sum(sp)
+    u = np.asarray(channel_weights, float)
+    den = total @ u
+    out = []
+    for c in sp:
+        share = np.where(den > 0, (c @ u) / np.where(den > 0, den, 1.0), 0.0)
+        out.append(share[:, None] * total)
+    return out
+
+
 def regime_phase_fits(profile, weights, column_scattering_by_regime):
     """(n_regime) list of (w, g1, g2) double-HG lobes, or None for an empty regime."""
     fit_phase = core("phase_fit").fit_phase
@@ -200,7 +250,9 @@ def volume_layers(plan, n_layers: int):
     aer = [project(a, weights) for a in lay.aerosol_scattering_by_regime]
     column = [lay.vertical_optical_depth(a) for a in lay.aerosol_scattering_by_regime]
     fits = regime_phase_fits(prof, weights, column)
-    species = [("rayleigh", ray, None)] + [(f"aerosol{r}", aer[r], fits[r]) for r in range(len(aer))]
+    sun_rgb = spectrum_rgb(prof.solar_irradiance, wl)
+    mixed = closure_split([ray] + aer, LUMA_709 * sun_rgb)
+    species = [("rayleigh", mixed[0], None)] + [(f"aerosol{r}", mixed[1 + r], fits[r]) for r in range(len(aer))]
     balls = [{"top_m": float(edges[i + 1]), "absorption": None, "scatter": {}} for i in range(lay.n_layers)]
     shells = {}
     dropped_tau = np.zeros(3)
@@ -248,6 +300,8 @@ def volume_layers(plan, n_layers: int):
         "phases": phases,
         "ground_albedo_rgb": [float(np.clip(a, 0.0, 1.0)) for a in albedo],
         "closures_at_camera": count(lobes),
+        # per-layer scatter coefficient of each closure species (R, G, B), after closure_split
+        "closure_scattering": {name: c for name, c, _fit in species},
         "dropped_optical_depth_rgb": [float(v) for v in dropped_tau],
         "weights": weights,
         "profile": prof,
@@ -263,13 +317,15 @@ TO_RGB = [2, 1, 0]
 def rgb_model_profile(vol):
     """The medium the Cycles volumes hold, as a core ``LayeredProfile`` on three pseudo-wavelengths
     (``PSEUDO_WL``, standing for B, G, R: reorder a result with ``[..., TO_RGB]``): the projected
-    RGB coefficients of every layer, Rayleigh without depolarisation (Cycles' RAYLEIGH phase), the
-    fitted aerosol lobes and the RGB extraterrestrial sun. The core's marcher renders it for a
+    RGB coefficients of every layer, with scattering split between the species as the closures
+    carry it (:func:`closure_split`), Rayleigh without depolarisation (Cycles' RAYLEIGH phase),
+    the fitted aerosol lobes and the RGB extraterrestrial sun. The core's marcher renders it for a
     like-for-like comparison with Cycles (``tests/test_addon.py``, ``benchmarks/bench_blender.py``)."""
     hg = core("phase_fit").hg
     LayeredProfile = core("profile").LayeredProfile
 
     lay, w, prof = vol["layered"], vol["weights"], vol["profile"]
+    cs = vol["closure_scattering"]
 
     def P(a):
         return project(a, w)[..., TO_RGB]
@@ -289,8 +345,9 @@ def rgb_model_profile(vol):
         wavelengths_nm=PSEUDO_WL, rayleigh_depolarization=np.zeros(3), aerosol_phase_angles_deg=angles,
         aerosol_phase=np.stack(tables), ground_albedo=np.asarray(vol["ground_albedo_rgb"])[TO_RGB],
         solar_irradiance=sun_rgb[TO_RGB], planet_radius_m=prof.planet_radius_m, top_altitude_m=lay.top_altitude_m,
-        edges_m=lay.edges_m, rayleigh_scattering=P(lay.rayleigh_scattering), ozone_absorption=P(lay.ozone_absorption),
-        aerosol_scattering_by_regime=np.stack([P(a) for a in lay.aerosol_scattering_by_regime]),
+        edges_m=lay.edges_m, rayleigh_scattering=cs["rayleigh"][..., TO_RGB], ozone_absorption=P(lay.ozone_absorption),
+        aerosol_scattering_by_regime=np.stack([cs[f"aerosol{r}"][..., TO_RGB]
+                                               for r in range(lay.aerosol_scattering_by_regime.shape[0])]),
         aerosol_absorption=P(lay.aerosol_absorption))
 
 
@@ -441,14 +498,14 @@ def apply(scene, world, settings, result, progress=None):
         tx.link_object(coll, sun)
         for i, ball in enumerate(vol["balls"]):
             name = f"Skymodel Atmosphere {i:02d}"
-            me = _mesh_from_arrays(tx, name, *sphere_arrays(R + ball["top_m"], -R, thetas))
+            me = _mesh_from_arrays(tx, name, *sphere_arrays(R + ball["top_m"], -R, thetas, apex_off_axis=True))
             mat = _volume_material(tx, name, ball["absorption"], ball["scatter"], vol["phases"])
             obj = _object(tx, coll, name, me, mat)
             obj["skymodel_top_m"] = ball["top_m"]
         for i, sh in enumerate(vol["shells"]):
             name = f"Skymodel Shell {i:02d}"
-            arrays = _join_arrays(sphere_arrays(R + sh["top_m"], -R, thetas),
-                                  sphere_arrays(R + sh["bottom_m"], -R, thetas, inward=True))
+            arrays = _join_arrays(sphere_arrays(R + sh["top_m"], -R, thetas, apex_off_axis=True),
+                                  sphere_arrays(R + sh["bottom_m"], -R, thetas, inward=True, apex_off_axis=True))
             me = _mesh_from_arrays(tx, name, *arrays)
             mat = _volume_material(tx, name, None, sh["scatter"], vol["phases"])
             obj = _object(tx, coll, name, me, mat)

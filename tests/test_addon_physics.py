@@ -137,3 +137,29 @@ def test_too_many_closures_are_refused(monkeypatch):
     with pytest.raises(SkymodelInputError) as e:
         volumetric.volume_layers(plan, 8)
     assert e.value.parameter == "n_layers"
+
+
+def test_closure_split_keeps_totals_and_luminance_and_gives_one_share_per_species():
+    """Cycles mixes phase closures with one weight per closure in all channels (docs/blender.md):
+    the split must keep each channel's total, give every closure the colour of the total (so that
+    mixing is the same in every channel), and keep each species' luminance-weighted scattering."""
+    plan = physics.resolve(physics.SkyParams(location="urban", month=7, sun_elevation_deg=30, mode="VOLUMETRIC",
+                                             n_layers=6))
+    vol = volumetric.volume_layers(plan, 6)
+    lay, w = vol["layered"], vol["weights"]
+    raw = [volumetric.project(lay.rayleigh_scattering, w)] + [volumetric.project(a, w)
+                                                              for a in lay.aerosol_scattering_by_regime]
+    split = [vol["closure_scattering"]["rayleigh"]] + [vol["closure_scattering"][f"aerosol{r}"]
+                                                       for r in range(len(raw) - 1)]
+    total = sum(np.maximum(r, 0.0) for r in raw)
+    assert np.allclose(sum(split), total, rtol=1e-12, atol=0)
+    u = physics.LUMA_709 * physics.spectrum_rgb(vol["profile"].solar_irradiance, vol["profile"].wavelengths_nm)
+    for r, s in zip(raw, split):
+        share = (s / np.where(total > 0, total, 1.0))
+        assert np.allclose(share, share[:, :1], rtol=1e-10, atol=1e-15)  # the same share in R, G, B
+        assert np.allclose(s @ u, np.maximum(r, 0.0) @ u, rtol=1e-10, atol=1e-20)
+    # the raw coefficients do differ in colour between species (else the test would prove nothing)
+    assert not np.allclose(raw[1][0] / raw[1][0, 1], raw[0][0] / raw[0][0, 1], rtol=0.05)
+    # the marcher's RGB model holds exactly the split coefficients
+    prof = volumetric.rgb_model_profile(vol)
+    assert np.allclose(prof.rayleigh_scattering[:, volumetric.TO_RGB], split[0])
