@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from skymodel.numerics import trapezoid
 from skymodel.geometry import altitude_grid
 from skymodel.profile import OpticalProfile
 from skymodel.render.montecarlo import MCResult, _Medium, trace_radiance
@@ -177,7 +178,7 @@ def test_sun_ray_optical_depth_is_exact(profile, layered):
             continue
         t = np.linspace(t0, t1, 200_001)
         ext = prof.sample(np.linalg.norm(pos[None] + t[:, None] * d[None], axis=1) - R).extinction
-        ref = np.trapz(ext, t, axis=0)
+        ref = trapezoid(ext, t, axis=0)
         # smooth profile: trapezoid error ~1e-7; layered: the step edges cost ~1e-4
         np.testing.assert_allclose(tau[0], ref, rtol=2e-4 if layered else 1e-6)
     # per-wavelength selection agrees with the all-wavelength form
@@ -266,7 +267,7 @@ def test_optically_thin_limit_is_linear_in_tau():
         mu = np.array(float(d @ s))
         f = smp.rayleigh_scattering * unit.rayleigh_phase(mu)
         f = f + (smp.aerosol_scattering_by_regime * unit.aerosol_phase_at(mu)[:, None, :]).sum(0)
-        lin.append(np.trapz(f[:, 0], t) * unit.solar_irradiance[0])
+        lin.append(trapezoid(f[:, 0], t) * unit.solar_irradiance[0])
     lin = np.array(lin)
     for k, res in zip((1e-3, 2e-3), thin):
         L, se = res.radiance[:, 0], res.stderr[:, 0]
@@ -320,8 +321,8 @@ def test_light_scattered_toward_the_ground_follows_the_phase_function():
     tz = np.concatenate([[0.0], np.cumsum(0.5 * (sig[1:] + sig[:-1]) * np.diff(z))])
     mu = np.linspace(-1.0, -1e-6, 2001)
     p = prof.aerosol_phase_at(mu)[0, :, 0]
-    inner = 2.0 * np.pi * np.trapz(p[None, :] * np.exp(-tz[:, None] / np.abs(mu)[None, :]), mu, axis=1)
-    ref = prof.solar_irradiance[0] * np.exp(-tz[-1]) / np.pi * np.trapz(sig * np.exp(-tz) * inner, z)
+    inner = 2.0 * np.pi * trapezoid(p[None, :] * np.exp(-tz[:, None] / np.abs(mu)[None, :]), mu, axis=1)
+    ref = prof.solar_irradiance[0] * np.exp(-tz[-1]) / np.pi * trapezoid(sig * np.exp(-tz) * inner, z)
     res = [trace_radiance(prof.with_(ground_albedo=np.array([a])), [[0.0, 0.0, 1.0]], 90.0, 0.0,
                           n_paths=1 << 15, max_bounces=2, seed=5) for a in (0.0, 1.0)]
     order2 = res[1].radiance[0, 0] - res[0].radiance[0, 0]

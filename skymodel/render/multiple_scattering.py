@@ -24,6 +24,11 @@ Each order is two matrix products per wavelength:
   function between every pair of grid directions times the quadrature weight of the
   incoming direction (double Gauss-Legendre in mu, midpoint in phi).
 
+Two safeguards keep thick media right: no grid ray gathers more than the physical
+bound (its transport row is scaled down where interpolation between altitude nodes
+would gather more, which once made the series diverge in dense layers), and in
+to-tolerance mode the orders left out are added as a geometric series.
+
 Aerosol phase functions have forward peaks far narrower than any practical direction
 grid; we truncate the peak inside a cone (delta-M, Wiscombe 1977) and treat the cut
 fraction f as unscattered (sigma_s* = (1 - f) sigma_s) inside the solver. The single
@@ -87,34 +92,58 @@ class MultipleScatteringField:
     order_contributions: list  # relative size of each order's source (diagnostic)
 
     def source_at(self, h, mu, phi, mu_s) -> np.ndarray:
-        """Quadrilinear interpolation of J_ms at points (any common shape) -> shape + (n_wl,)."""
-        def axis(nodes, x):
-            x = np.clip(x, nodes[0], nodes[-1])
-            i = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, nodes.size - 2)
-            f = (x - nodes[i]) / (nodes[i + 1] - nodes[i])
-            return i, f
+        """Interpolated J_ms at points (any common shape) -> shape + (n_wl,).
 
-        ih, fh = axis(self.h_nodes, np.asarray(h, float))
-        im, fm = axis(self.mu_nodes, np.asarray(mu, float))
-        ip, fp = axis(self.phi_nodes, np.asarray(phi, float))
-        isn, fs = axis(self.mus_nodes, np.asarray(mu_s, float))
+        Linear in altitude, mu and phi. Along the sun cosine mu_s it is linear too,
+        except between two nodes that both have the sun at or below the horizon
+        (mu_s <= 0): there the source falls roughly exponentially with the depth of
+        the sun (the sunlit part of the atmosphere recedes upward), and linear
+        interpolation of such a convex function overestimates it between nodes;
+        :func:`_sun_interp` interpolates log J instead. Both forms agree at the nodes,
+        so the result stays continuous in mu_s.
+        """
+        ih, fh = _axis(self.h_nodes, np.asarray(h, float))
+        im, fm = _axis(self.mu_nodes, np.asarray(mu, float))
+        ip, fp = _axis(self.phi_nodes, np.asarray(phi, float))
+        isn, fs = _axis(self.mus_nodes, np.asarray(mu_s, float))
         src = self.source
-        out = 0.0
-        for dm, wm in ((0, 1 - fm), (1, fm)):
-            for dp, wp in ((0, 1 - fp), (1, fp)):
-                for dh, wh in ((0, 1 - fh), (1, fh)):
-                    for ds, ws in ((0, 1 - fs), (1, fs)):
-                        w = (wm * wp * wh * ws)[..., None]
+        at_node = []
+        for ds in (0, 1):
+            out = 0.0
+            for dm, wm in ((0, 1 - fm), (1, fm)):
+                for dp, wp in ((0, 1 - fp), (1, fp)):
+                    for dh, wh in ((0, 1 - fh), (1, fh)):
+                        w = (wm * wp * wh)[..., None]
                         out = out + w * np.moveaxis(src[:, im + dm, ip + dp, ih + dh, isn + ds], 0, -1)
-        return out
+            at_node.append(out)
+        return _sun_interp(at_node[0], at_node[1], fs[..., None], (self.mus_nodes[isn + 1] <= 0.0)[..., None])
 
     def ground_irradiance_at(self, mu_s) -> np.ndarray:
-        """Diffuse (sky) irradiance on the ground where the sun's zenith cosine is mu_s."""
-        x = np.clip(np.asarray(mu_s, float), self.mus_nodes[0], self.mus_nodes[-1])
-        out = np.empty(x.shape + (self.wavelengths_nm.size,))
-        for k in range(self.wavelengths_nm.size):
-            out[..., k] = np.interp(x, self.mus_nodes, self.ground_diffuse_irradiance[:, k])
-        return out
+        """Diffuse (sky) irradiance on the ground where the sun's zenith cosine is mu_s
+        (interpolated in mu_s as in :meth:`source_at`)."""
+        i, f = _axis(self.mus_nodes, np.asarray(mu_s, float))
+        e = self.ground_diffuse_irradiance
+        return _sun_interp(e[i], e[i + 1], f[..., None], (self.mus_nodes[i + 1] <= 0.0)[..., None])
+
+
+def _axis(nodes, x):
+    """Lower node index and fraction for linear interpolation (clamped to the nodes)."""
+    x = np.clip(x, nodes[0], nodes[-1])
+    i = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, nodes.size - 2)
+    return i, (x - nodes[i]) / (nodes[i + 1] - nodes[i])
+
+
+def _sun_interp(a, b, f, below):
+    """Interpolate between values ``a`` (f = 0) and ``b`` (f = 1): geometrically
+    (linear in log) where ``below`` and both are positive, else linearly. Measured at
+    sun elevation -4 degrees (synthetic AOD 0.2 sky, 24 sun nodes): linear interpolation
+    put the multiple-scattering radiance of the anti-sun horizon 25 % above its
+    value with 192 nodes; geometric interpolation is within about 3 % of it at 24 nodes."""
+    lin = a * (1.0 - f) + b * f
+    pos = below & (a > 0.0) & (b > 0.0)
+    la = np.log(np.where(pos, a, 1.0))
+    lb = np.log(np.where(pos, b, 1.0))
+    return np.where(pos, np.exp(la * (1.0 - f) + lb * f), lin)
 
 
 def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTransmittance, *,
@@ -184,6 +213,20 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
         for dm_, wm in ((0, 1 - fm), (1, fm)):
             node = (ih + dh_) * n_mu + (im + dm_)
             np.add.at(M, (ray_idx.ravel(), node.ravel()), (base * (wh * wm)[..., None]).reshape(-1, n_wl))
+    # Energy: for a source proportional to the extinction, a ray gathers
+    # sum dt T sigma(h interpolated between altitude nodes), whose exact value
+    # sum dt T sigma(h) is at most 1 - T_end < 1. Linear interpolation between nodes
+    # overestimates it grossly where a node sits in a dense layer and the ray runs
+    # through thin air beside it: measured up to 15-35 (30-85x the exact value) on some
+    # rays for the 'background' aerosol at AOD 5 with 16-48 altitude nodes, which made
+    # each order larger than the last (the series diverged to 8x the solar irradiance).
+    # Rows above the physical bound 1 are scaled down to it; rows below it are left as
+    # they were (an ordinary sky changes by < 0.1 %: only grazing rays through the
+    # whole atmosphere come near the bound).
+    ext_nodes = medium.extinction_scaled.at(h_nodes)  # (n_h, n_wl)
+    ext_interp = ext_nodes[ih] * (1.0 - fh)[..., None] + ext_nodes[np.minimum(ih + 1, h_nodes.size - 1)] * fh[..., None]
+    gathered = (base * ext_interp).sum(axis=1)  # (rays, n_wl)
+    M *= (1.0 / np.maximum(gathered, 1.0))[:, None, :]
     M = np.ascontiguousarray(np.moveaxis(M, -1, 0), dtype=np.float32)  # (n_wl, rays, nodes)
     G = ground_t.T.astype(np.float32)  # (n_wl, rays)
 
@@ -273,6 +316,7 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
     e_diffuse = ground_irradiance(radiance)
     j_ms = np.zeros_like(j1)
     contributions = []
+    sizes = []  # per order: sum of |J_n| per wavelength
     n_done = 1
     limit = max_orders if orders is None else orders
     for n in range(2, limit + 1):
@@ -285,9 +329,26 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
             progress(n, size)
         lg = albedo[None, :] / np.pi * ground_irradiance(radiance)
         radiance = transport(j_n, lg)
-        e_diffuse = e_diffuse + ground_irradiance(radiance)
+        e_n = ground_irradiance(radiance)
+        e_diffuse = e_diffuse + e_n
+        sizes.append(np.abs(j_n).sum(axis=(1, 2, 3), dtype=np.float64))  # per wavelength
         if orders is None and size < tolerance:
             break
+    if orders is None and len(sizes) >= 3:
+        # The orders still missing, as a geometric series. High orders of scattering
+        # take the shape of the scattering operator's leading eigenfunction and shrink
+        # by its eigenvalue q per order (q -> 1 in thick, bright media), so the rest
+        # of the series is J_n q / (1 - q), likewise for the ground irradiance. q is
+        # each wavelength's ratio of the last two orders, used when the ratios of the
+        # last three agree (the series has settled). Measured: desert AOD 10, sun 30
+        # deg: stopping at max_orders = 20 left the radiance up to 8 % low (650 nm);
+        # with the tail it is within 0.1 % of the series run to 1e-6 (58 orders).
+        q = sizes[-1] / np.maximum(sizes[-2], 1e-300)
+        q_prev = sizes[-2] / np.maximum(sizes[-3], 1e-300)
+        settled = (q > 0.0) & (q < 0.99) & (np.abs(q - q_prev) <= 0.1 * q)
+        tail = np.where(settled, q / (1.0 - np.where(settled, q, 0.0)), 0.0).astype(np.float32)
+        j_ms = j_ms + j_n * tail[:, None, None, None]
+        e_diffuse = e_diffuse + e_n * tail[None, :]
     source = j_ms.reshape(n_wl, n_mu, n_phi, n_altitudes, n_mus).astype(np.float64)
     return MultipleScatteringField(wl, h_nodes, mu_nodes, phi_nodes, mus_nodes, source, e_diffuse.astype(np.float64),
                                    n_done, contributions)
