@@ -13,9 +13,9 @@ pydisort pulls torch, so it lives in its own virtual environment, never in CI:
     python3 -m venv /work/disort-venv
     /work/disort-venv/bin/pip install torch==2.10.0 pydisort==1.8.13
     /work/disort-venv/bin/pip install -e "/work/main[test]"
-    nice -n 10 /work/disort-venv/bin/python benchmarks/validate_disort.py --write docs/accuracy-disort.md
+    nice -n 10 /work/disort-venv/bin/python benchmarks/validate_disort.py --write docs/accuracy.md
 
-Conventions (checked, see docs/accuracy-disort.md): DISORT's ``umu`` < 0 is light
+Conventions (checked, see docs/accuracy.md): DISORT's ``umu`` < 0 is light
 travelling downward, i.e. a ground observer looking up at zenith angle acos(-umu); its
 azimuth ``phi - phi0`` = 0 is light travelling in the beam's azimuth, i.e. the observer
 looking toward the sun, which is our relative azimuth 0. ``fbeam`` is the solar

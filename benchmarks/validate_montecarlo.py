@@ -14,7 +14,7 @@ sun-cosine interpolation of the multiple-scattering table (the twilight fix: geo
 instead of linear interpolation between nodes with the sun below the horizon) by
 running the marcher both ways against one long MC run.
 
-    nice -n 10 python benchmarks/validate_montecarlo.py            # writes docs/accuracy-montecarlo.md
+    nice -n 10 python benchmarks/validate_montecarlo.py            # writes its section of docs/accuracy.md
     nice -n 10 python benchmarks/validate_montecarlo.py --quick    # a smoke run (minutes, noisier)
 """
 
@@ -123,7 +123,7 @@ def main(argv=None):
     ap.add_argument("--paths-twilight", type=int, default=60_000, help="MC paths per direction and band, sun < 0")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-twilight-check", dest="twilight_check", action="store_false")
-    ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "..", "docs", "accuracy-montecarlo.md"))
+    ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "..", "docs", "accuracy.md"))
     a = ap.parse_args(argv)
     if a.quick:
         a.paths_day, a.paths_twilight = 2000, 4000

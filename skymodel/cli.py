@@ -369,6 +369,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_radiance)
 
+    from .accuracy import add_bench_command  # `skymodel bench accuracy` (what accuracy costs in time)
+
+    add_bench_command(sub)
+
     for register in _EXTRA_COMMANDS:
         register(sub)
     return parser

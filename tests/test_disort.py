@@ -1,7 +1,7 @@
 """The marcher against DISORT (pydisort), a small version of benchmarks/validate_disort.py.
 
 Runs only where pydisort is installed (it pulls torch; CI does not install it): see
-docs/accuracy-disort.md for the environment and the full comparison."""
+docs/accuracy.md for the environment and the full comparison."""
 
 import os
 import sys

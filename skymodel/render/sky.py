@@ -23,11 +23,15 @@ from .sun_transmittance import SUN_ANGULAR_RADIUS_RAD
 
 #: Quality presets (see docs/accuracy.md for the measured error and time of each).
 QUALITY = {
-    "preview": MarchSettings(view_steps=40, order_tolerance=1e-2, ms_wavelength_step_nm=40.0, table_altitudes=16,
-                             table_mu=16, table_phi=8, table_mus=16, table_steps=32, sun_table_altitudes=64,
+    # Tuned from the measurement (docs/accuracy.md, "Choosing the presets"): twilight (sun
+    # -4 deg) needs more sun-angle and altitude nodes in the multiple-scattering table.
+    # preview: table_mus 16 -> 32, table_altitudes 16 -> 24; final: table_mus 24 -> 32,
+    # table_altitudes 24 -> 32, table_steps 48 -> 96, ms_wavelength_step_nm 20 -> 10.
+    "preview": MarchSettings(view_steps=40, order_tolerance=1e-2, ms_wavelength_step_nm=40.0, table_altitudes=24,
+                             table_mu=16, table_phi=8, table_mus=32, table_steps=32, sun_table_altitudes=64,
                              sun_table_x=128, sun_table_steps=96, grid_zenith=64, grid_zenith_ground=16,
                              grid_azimuth=37),
-    "final": MarchSettings(),
+    "final": MarchSettings(table_mus=32, table_altitudes=32, table_steps=96, ms_wavelength_step_nm=10.0),
     "reference": MarchSettings(view_steps=128, order_tolerance=1e-4, ms_wavelength_step_nm=10.0,
                                table_altitudes=32, table_mu=48, table_phi=16, table_mus=32, table_steps=96,
                                sun_table_altitudes=128, sun_table_x=256, sun_table_steps=320, grid_zenith=192,

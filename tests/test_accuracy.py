@@ -1,0 +1,246 @@
+"""The accuracy benchmark (skymodel bench accuracy): the quick run, its error metrics, and
+the checked-in measured table (presets/accuracy/measured.json). No timing asserts."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from skymodel import accuracy
+from skymodel.errors import SkymodelInputError
+from skymodel.wavelengths import default_wavelengths
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+MEASURED = os.path.join(ROOT, "presets", "accuracy", "measured.json")
+ROW_KEYS = {"scene": str, "knob": str, "settings": dict, "time_s": float, "radiance_rel_rms": float,
+            "radiance_rel_max": float, "de2000_mean": float, "de2000_p95": float}
+PRESET_KEYS = ("time_s", "radiance_rel_mean", "de2000_mean", "peak_memory_mb", "width", "height")
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    """One quick run (all knobs, one scene, 32x16) with its own reference cache."""
+    cache = tmp_path_factory.mktemp("cache")
+    old = os.environ.get("SKYMODEL_CACHE")
+    os.environ["SKYMODEL_CACHE"] = str(cache)
+    try:
+        yield accuracy.run_benchmark(accuracy.quick_config(), log=lambda m: None)
+    finally:
+        if old is None:
+            os.environ.pop("SKYMODEL_CACHE", None)
+        else:
+            os.environ["SKYMODEL_CACHE"] = old
+
+
+def _check_schema(result):
+    for key, typ in (("machine", str), ("command", str), ("date", str), ("camera", dict), ("scenes", dict),
+                     ("rows", list), ("presets", dict)):
+        assert isinstance(result[key], typ), key
+    assert result["camera"]["kind"] == "equirectangular"
+    assert result["camera"]["width"] > 0 and result["camera"]["height"] > 0
+    for name, scene in result["scenes"].items():
+        assert name in accuracy.SCENES
+        assert scene["sun_elevation_deg"] == accuracy.SCENES[name]
+        assert isinstance(scene["location"], str) and isinstance(scene["month"], int)
+    for row in result["rows"]:
+        for key, typ in ROW_KEYS.items():
+            assert isinstance(row[key], typ), (key, row)
+        assert isinstance(row["value"], (str, int, float))
+        assert row["knob"] in accuracy.KNOBS
+        assert row["scene"] in result["scenes"]
+        for key in ("time_s", "radiance_rel_rms", "radiance_rel_max", "de2000_mean", "de2000_p95"):
+            assert np.isfinite(row[key]) and row[key] >= 0.0, (key, row)
+        assert row["radiance_rel_max"] >= row["radiance_rel_rms"] - 1e-15
+        assert row["de2000_p95"] >= 0.0
+    assert set(result["presets"]) == {"preview", "final", "reference"}
+    for name, per_scene in result["presets"].items():
+        assert set(per_scene) == set(result["scenes"]), name
+        for entry in per_scene.values():
+            for key in PRESET_KEYS:
+                assert np.isfinite(entry[key]) and entry[key] >= 0, (name, key)
+
+
+def _row(result, knob, value, scene="noon"):
+    (row,) = [r for r in result["rows"] if r["knob"] == knob and r["value"] == value and r["scene"] == scene]
+    return row
+
+
+def test_quick_run_has_the_schema_and_every_knob(quick):
+    _check_schema(quick)
+    cfg = accuracy.quick_config()
+    for knob in accuracy.KNOBS:
+        got = [r["value"] for r in quick["rows"] if r["knob"] == knob]
+        want = list(cfg.presets) if knob == "preset" else list(cfg.knob_values(knob))
+        assert got == want, knob
+    json.dumps(quick)  # serialisable as is
+
+
+def test_more_scattering_orders_shrink_the_error(quick):
+    e = [_row(quick, "orders", n)["radiance_rel_rms"] for n in (1, 2, 4)]
+    assert e[0] > e[1] > e[2]
+    assert _row(quick, "orders", 1)["de2000_mean"] > _row(quick, "orders", 4)["de2000_mean"]
+    # single scattering alone misses a large share of a noon sky (several percent at least)
+    assert _row(quick, "orders", 1)["radiance_rel_mean"] > 0.05
+
+
+def test_more_wavelengths_shrink_the_error(quick):
+    assert _row(quick, "wavelengths", 11)["radiance_rel_mean"] > _row(quick, "wavelengths", 41)["radiance_rel_mean"]
+    assert _row(quick, "wavelengths", 11)["de2000_mean"] > _row(quick, "wavelengths", 41)["de2000_mean"]
+    # the 3-wavelength shortcut is the worst in colour
+    assert _row(quick, "wavelengths", "rgb3")["de2000_mean"] > _row(quick, "wavelengths", 11)["de2000_mean"]
+
+
+def test_reference_preset_has_zero_error(quick):
+    ref = quick["presets"]["reference"]["noon"]
+    assert ref["radiance_rel_mean"] == 0.0 and ref["de2000_mean"] == 0.0
+    assert quick["presets"]["final"]["noon"]["radiance_rel_mean"] > 0.0
+
+
+def test_monte_carlo_error_falls_with_samples(quick):
+    rows = [r for r in quick["rows"] if r["knob"] == "mc_samples"]
+    assert len(rows) >= 2
+    assert rows[0]["mc_stderr_rel_mean"] > rows[-1]["mc_stderr_rel_mean"]
+
+
+def test_errors_of_an_image_against_itself_are_zero():
+    rng = np.random.default_rng(3)
+    wl = default_wavelengths(20.0)
+    ref = rng.uniform(0.01, 0.5, (6, 5, wl.size))
+    w = rng.uniform(0.1, 1.0, (6, 5))
+    e = accuracy.errors(ref, wl, ref, wl, w)
+    assert all(e[k] == 0.0 for k in ("radiance_rel_mean", "radiance_rel_rms", "radiance_rel_max", "de2000_mean",
+                                     "de2000_p95"))
+    # a uniform 1% excess is a 1% error at every point
+    e = accuracy.errors(ref * 1.01, wl, ref, wl, w)
+    assert e["radiance_rel_mean"] == pytest.approx(0.01) and e["radiance_rel_max"] == pytest.approx(0.01)
+    assert e["de2000_mean"] > 0.0
+    # zero weight everywhere: nothing to compare
+    with pytest.raises(SkymodelInputError, match="weights"):
+        accuracy.errors(ref, wl, ref, wl, np.zeros((6, 5)))
+
+
+def test_band_matrix_averages_the_reference_over_each_band():
+    fine, coarse = default_wavelengths(5.0), default_wavelengths(10.0)
+    assert np.allclose(accuracy.band_matrix(fine, fine), np.eye(fine.size))
+    m = accuracy.band_matrix(coarse, fine)
+    assert np.allclose(m.sum(axis=1), 1.0)
+    j = int(np.nonzero(fine == 550.0)[0][0])
+    i = int(np.nonzero(coarse == 550.0)[0][0])
+    assert np.allclose(m[i, j - 1:j + 2], [0.25, 0.5, 0.25])  # trapezoid over 545..555 nm
+    # a linear spectrum is kept exactly away from the ends
+    lin = 2.0 + 0.01 * fine
+    assert np.allclose((m @ lin)[1:-1], 2.0 + 0.01 * coarse[1:-1])
+
+
+def test_rgb_shortcut_maps_the_solar_spectrum_to_its_own_colour():
+    from skymodel.colorimetry import spectral_to_rgb
+
+    wl3 = np.array(sorted(accuracy.RGB3_WAVELENGTHS_NM))
+    e3 = accuracy.base_profile(wl3).solar_irradiance
+    full = accuracy.base_profile(default_wavelengths())
+    assert np.allclose(accuracy.rgb_of(e3, wl3), spectral_to_rgb(full.solar_irradiance, full.wavelengths_nm))
+    # twice the light, twice the RGB
+    assert np.allclose(accuracy.rgb_of(2 * e3, wl3), 2 * accuracy.rgb_of(e3, wl3))
+
+
+def test_fitted_phase_keeps_the_asymmetry_and_normalisation():
+    from skymodel.numerics import trapezoid
+    from skymodel.phase_fit import asymmetry
+
+    prof = accuracy.base_profile(default_wavelengths(100.0))
+    assert accuracy.with_fitted_phase(prof, "mie") is prof
+    ang = prof.aerosol_phase_angles_deg
+    mu = np.cos(np.radians(ang))
+    fits = accuracy.phase_fits(prof)
+    for kind in ("hg", "dhg"):
+        p = accuracy.with_fitted_phase(prof, kind, fits)
+        assert p.aerosol_phase.shape == prof.aerosol_phase.shape
+        assert not np.allclose(p.aerosol_phase, prof.aerosol_phase)
+        for r in range(prof.aerosol_phase.shape[0]):
+            if not np.any(prof.aerosol_phase[r] > 0):
+                continue
+            if kind == "hg":  # HG takes the table's asymmetry parameter as its g
+                assert np.allclose(asymmetry(ang, p.aerosol_phase[r]), asymmetry(ang, prof.aerosol_phase[r]),
+                                   atol=2e-3)
+            norm = -2 * np.pi * trapezoid(p.aerosol_phase[r], mu, axis=0)
+            assert np.allclose(norm, 1.0, atol=0.02)
+    with pytest.raises(SkymodelInputError, match="phase"):
+        accuracy.with_fitted_phase(prof, "rayleigh")
+
+
+def test_scale_angular_keeps_the_parity_the_solver_needs():
+    from skymodel.render.marcher import MarchSettings
+
+    for f in (0.25, 0.5, 0.75, 1.0, 1.5):
+        s = accuracy.scale_angular(MarchSettings(), f)
+        assert s.table_mu % 2 == 0 and s.grid_azimuth % 2 == 1
+    assert accuracy.scale_angular(MarchSettings(), 1.0) == MarchSettings()
+    assert accuracy.scale_angular(MarchSettings(), 2.0).grid_zenith == 2 * MarchSettings().grid_zenith
+    with pytest.raises(SkymodelInputError, match="angular_grid"):
+        accuracy.scale_angular(MarchSettings(), 0.0)
+
+
+def test_unknown_knob_or_scene_is_refused():
+    cfg = accuracy.quick_config()
+    with pytest.raises(SkymodelInputError, match="knob"):
+        accuracy.run_benchmark(cfg, knobs=["resolution"], log=lambda m: None)
+    with pytest.raises(SkymodelInputError, match="scene"):
+        accuracy.run_benchmark(cfg, scenes=["midnight"], log=lambda m: None)
+
+
+def test_cli_writes_the_table_and_the_markdown(quick, tmp_path, monkeypatch):
+    # the references are cached by the quick fixture: only the layers knob renders here
+    from skymodel.cli import main
+
+    monkeypatch.setenv("SKYMODEL_CACHE", os.environ.get("SKYMODEL_CACHE", str(tmp_path)))
+    md, js = tmp_path / "acc.md", tmp_path / "m.json"
+    md.write_text("# Accuracy\n\nprose kept\n")
+    assert main(["bench", "accuracy", "--quick", "--knobs", "layers", "--out", str(md), "--json", str(js)]) == 0
+    result = json.loads(js.read_text())
+    assert {r["knob"] for r in result["rows"]} == {"layers"}
+    assert result["command"].startswith("skymodel bench accuracy --quick")
+    text = md.read_text()
+    assert "prose kept" in text and "| layers | 4 |" in text
+    assert (tmp_path / "img" / "accuracy_noon.png").stat().st_size > 1000
+
+
+def test_merge_replaces_only_the_rows_remeasured(quick):
+    part = dict(quick, rows=[dict(r, time_s=r["time_s"] + 1.0) for r in quick["rows"] if r["knob"] == "orders"],
+                presets={}, command="skymodel bench accuracy --quick --knobs orders", total_s=1.0)
+    merged = accuracy.merge_results(quick, part)
+    assert len(merged["rows"]) == len(quick["rows"])
+    for old, new in zip(quick["rows"], merged["rows"]):
+        assert (old["knob"], old["value"]) == (new["knob"], new["value"])
+        assert new["time_s"] == old["time_s"] + (1.0 if old["knob"] == "orders" else 0.0)
+    assert merged["presets"] == quick["presets"]
+    assert merged["partial_runs"][-1]["command"].endswith("--knobs orders")
+    # a run of another configuration is not merged into this one
+    assert accuracy.merge_results(quick, dict(part, config="full"))["config"] == "full"
+
+
+def test_checked_in_measured_table_covers_every_knob_and_scene():
+    with open(MEASURED, encoding="utf-8") as f:
+        result = json.load(f)
+    _check_schema(result)
+    assert set(result["scenes"]) == {"noon", "sunset5", "twilight"}
+    assert result["camera"] == {"kind": "equirectangular", "width": 128, "height": 64}
+    want = {"wavelengths": {81, 41, 21, 11, "rgb3"}, "orders": set(range(1, 9)) | {"tolerance"},
+            "layers": {4, 8, 16, 32, 64, "smooth"}, "phase": {"mie", "hg", "dhg"},
+            "preset": {"preview", "final", "reference"}}
+    for scene in result["scenes"]:
+        for knob in accuracy.KNOBS:
+            values = {r["value"] for r in result["rows"] if r["scene"] == scene and r["knob"] == knob}
+            assert values, (scene, knob)
+            if knob in want:
+                assert values == want[knob], (scene, knob)
+    for scene in result["scenes"]:
+        for name in ("preview", "final", "reference"):
+            entry = result["presets"][name][scene]
+            assert (entry["width"], entry["height"]) == (512, 256)
+        assert result["presets"]["reference"][scene]["radiance_rel_mean"] == 0.0
+        # the presets are ordered in error: reference (0) < final < preview
+        assert 0.0 < result["presets"]["final"][scene]["radiance_rel_mean"] < \
+            result["presets"]["preview"][scene]["radiance_rel_mean"]
