@@ -369,6 +369,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_radiance)
 
+    from .compare import add_compare_command  # `skymodel compare` (sky models side by side)
+
+    add_compare_command(sub)
+
     from .accuracy import add_bench_command  # `skymodel bench accuracy` (what accuracy costs in time)
 
     add_bench_command(sub)
