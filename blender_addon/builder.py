@@ -265,6 +265,25 @@ def _environment_nodes(tx: Transaction, world, image):
     _world_surface(tx, world, bg.outputs["Background"])
 
 
+def _sky_texture_nodes(tx: Transaction, world, tex: dict):
+    """Blender's Sky Texture (settings from physics.blender_sky_texture) -> Background."""
+    tree = world.node_tree
+    x0, y0 = -700, 300
+    sky = tx.new_node(tree, "ShaderNodeTexSky", "Skymodel Sky Texture", (x0, y0))
+    sky.sky_type = tex["sky_type"]
+    sky.sun_disc = False  # the lamp is the sun
+    sky.sun_elevation = math.radians(tex["sun_elevation_deg"])
+    sky.sun_rotation = math.radians(tex["sun_rotation_deg"])
+    sky.altitude = tex["altitude_m"]
+    sky.air_density = tex["air_density"]
+    sky.aerosol_density = tex["aerosol_density"]
+    sky.ozone_density = tex["ozone_density"]
+    bg = tx.new_node(tree, "ShaderNodeBackground", "Skymodel Background", (x0 + 350, y0))
+    bg.inputs["Strength"].default_value = 1.0
+    tree.links.new(sky.outputs["Color"], bg.inputs["Color"])
+    _world_surface(tx, world, bg.outputs["Background"])
+
+
 def _black_world_nodes(tx: Transaction, world):
     tree = world.node_tree
     bg = tx.new_node(tree, "ShaderNodeBackground", "Skymodel Background", (-350, 300))
@@ -304,11 +323,15 @@ def apply_environment(scene, world, settings, result, progress=None):
     try:
         if progress:
             progress("loading the sky image")
-        image = load_image(tx, result.image_path, settings.pack_image)
+        sky_texture = result.info.get("sky_texture")  # sky model "blender": its own node, no image
+        image = None if sky_texture else load_image(tx, result.image_path, settings.pack_image)
         coll = _ensure_collection(tx, scene)
         sun = _new_sun(tx, result)
         tx.link_object(coll, sun)
-        _environment_nodes(tx, world, image)
+        if sky_texture:
+            _sky_texture_nodes(tx, world, sky_texture)
+        else:
+            _environment_nodes(tx, world, image)
         if settings.set_exposure:
             _view_settings(tx, scene, result.exposure)
         _write_info(tx, settings, result)
@@ -347,6 +370,8 @@ def _write_info(tx: Transaction, settings, result):
     ]
     if "total_s" in info:
         lines.append(f"Built in {info['total_s']:.1f} s" + (" (cached image)" if result.cache_hit else ""))
+    if "sky_model" in info:
+        lines.append(f"Model {info['sky_model']}")
     tx.set(settings, "last_build", stamp)
     tx.set(settings, "last_info", " | ".join(lines))
 

@@ -93,7 +93,16 @@ def build(context, settings=None, progress=None):
     settings = settings or world.skymodel
     t0 = time.perf_counter()
     params = settings.to_params()
-    params = dataclasses.replace(params, mode=decide_mode(params.mode, scene))
+    if params.mode == "AUTO":  # the effect planner decides (skymodel.planner)
+        from . import scene_description
+
+        auto_plan = scene_description.make_plan(scene, settings)
+        params = scene_description.params_from_plan(params, auto_plan)
+        if progress:
+            for line in scene_description.plan_lines(auto_plan):
+                progress(f"plan: {line}")
+    else:
+        params = dataclasses.replace(params, mode=decide_mode(params.mode, scene))
     if progress:
         progress(f"mode {params.mode.lower()}, quality {params.quality}")
     plan = physics.resolve(params)

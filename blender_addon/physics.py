@@ -58,6 +58,10 @@ WAVELENGTH_STEP_NM = {"preview": 10.0, "final": 5.0, "reference": 5.0}
 MIN_SUN_ELEVATION_DEG = -12.0
 #: Rec.709 luminance weights (Blender's scene-linear luminance).
 LUMA_709 = np.array([0.2126, 0.7152, 0.0722])
+#: Sky models the Environment can come from (names of ``skymodel.models``, and "blender":
+#: Blender's own Sky Texture node): only models with an absolute radiance (the CIE skies
+#: are relative and not offered).
+SKY_MODELS = ("ours", "preetham", "openspace_earth", "blender")
 
 
 def _err(parameter, value, allowed):
@@ -95,6 +99,11 @@ class SkyParams:
     image_width: int = 0
     mode: str = "ENVIRONMENT"
     n_layers: int = 8
+    sky_model: str = "ours"  # one of SKY_MODELS (Environment mode)
+    # set by Auto mode's effect plan (skymodel.planner); None / True = the quality's own
+    wavelength_step_nm: float | None = None
+    orders: int | None = None  # highest scattering order; 0 = until converged
+    earth_shadow: bool = True
 
 
 @dataclass(frozen=True)
@@ -175,6 +184,12 @@ def resolve(params: SkyParams) -> Plan:
         raise _err("image_width", p.image_width, "0 (by quality) or 16..8192 pixels")
     if not 1 <= int(p.n_layers) <= 24:
         raise _err("n_layers", p.n_layers, "an integer 1..24")
+    if p.sky_model not in SKY_MODELS:
+        raise _err("sky_model", p.sky_model, "one of: " + ", ".join(SKY_MODELS))
+    if p.sky_model != "ours" and p.mode != "ENVIRONMENT":
+        raise _err("sky_model", p.sky_model, "ours in Volumetric mode (the other models make environment images only)")
+    if p.sky_model not in ("ours", "blender") and p.observer_altitude_m != 0.0:
+        raise _err("observer_altitude", p.observer_altitude_m, f"0 m with the {p.sky_model} sky model (a ground observer)")
     return Plan(p, atm, float(elev), float(az), dist, iso)
 
 
@@ -312,6 +327,46 @@ class _Orders:
             self.progress(f"scattering order {n} (adds {size:.2%})")
 
 
+def model_environment(plan: Plan, camera, wavelengths_nm, include_sun=False):
+    """``(radiance (H, W, n_wl), direct sun irradiance (n_wl,))`` of the camera's pixels from
+    the alternative sky model ``plan.params.sky_model`` (:mod:`skymodel.models`), its own
+    sun (Preetham's transmittance; OpenSpace's marcher), scaled to the date's distance."""
+    models = core("models")
+    scene = models.SkyScene(plan.atmosphere, plan.sun_elevation_deg, plan.sun_azimuth_deg, wavelengths_nm,
+                            plan.params.quality)
+    dirs, valid = camera.directions()
+    radiance = np.zeros(valid.shape + (len(wavelengths_nm),))
+    res = models.get_model(plan.params.sky_model, "sky_model")(scene, dirs[valid])
+    scale = 1.0 / plan.earth_sun_distance_au**2
+    radiance[valid] = np.asarray(res.values) * scale
+    sun_irr = np.asarray(res.info["sun_irradiance"], dtype=float) * scale
+    if include_sun:
+        render_sky = core("render.sky")
+        render_sky.add_sun_disc(radiance, dirs, valid, camera.pixel_solid_angles(), scene.sun_direction, sun_irr,
+                                wavelengths_nm, limb_darkening=getattr(core("sun"), "limb_darkening", None))
+    return radiance, sun_irr
+
+
+def blender_sky_texture(plan: Plan, cache_dir=None, progress=None):
+    """Sky model "blender": Blender's own Sky Texture node (Multiple Scattering) with air,
+    aerosol and ozone densities matched to the atmosphere
+    (:func:`skymodel.models.blender_sky.scene_parameters`); the sun lamp and the exposure
+    come from our model at 64x32 (``SkyResult.image_path`` is None, the node settings are in
+    ``info["sky_texture"]``). Sky Texture ``sun_rotation`` is the azimuth clockwise from
+    north (+Y), as ours (measured with bpy 5.0.1: 0 puts the sun at +Y, 90 degrees at +X)."""
+    small = dataclasses.replace(plan, params=dataclasses.replace(plan.params, sky_model="ours", image_width=64))
+    _, res = render_environment(small, cache_dir, progress)
+    scene = core("models").SkyScene(plan.atmosphere, plan.sun_elevation_deg, plan.sun_azimuth_deg, [550.0])
+    prm = core("models.blender_sky").scene_parameters(scene)
+    tex = {"sky_type": "MULTIPLE_SCATTERING", "sun_elevation_deg": plan.sun_elevation_deg,
+           "sun_rotation_deg": plan.sun_azimuth_deg, "altitude_m": float(plan.params.observer_altitude_m),
+           "air_density": prm["air_density"], "aerosol_density": prm["aerosol_density"],
+           "ozone_density": prm["ozone_density"]}
+    res.image_path = None
+    res.info = dict(res.info, sky_model="blender", sky_texture=tex)
+    return None, res
+
+
 def render_environment(plan: Plan, cache_dir=None, progress=None, include_sun=False):
     """Render (or reuse) the equirectangular sky for ``plan``.
 
@@ -319,9 +374,13 @@ def render_environment(plan: Plan, cache_dir=None, progress=None, include_sun=Fa
     JSON with the lamp and exposure numbers are in ``cache_dir`` under the cache key.
     """
     p = plan.params
+    if p.sky_model == "blender":
+        return blender_sky_texture(plan, cache_dir, progress)
     width = image_width(p)
-    step = WAVELENGTH_STEP_NM[p.quality]
-    key = cache_key(plan, "environment", width=width, wavelength_step_nm=step, include_sun=bool(include_sun))
+    step = float(p.wavelength_step_nm or WAVELENGTH_STEP_NM[p.quality])
+    planned = {"orders": p.orders, "earth_shadow": p.earth_shadow} if (p.orders is not None or not p.earth_shadow) else {}
+    key = cache_key(plan, "environment", width=width, wavelength_step_nm=step, include_sun=bool(include_sun),
+                    **({"sky_model": p.sky_model} if p.sky_model != "ours" else {}), **planned)
     folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     folder.mkdir(parents=True, exist_ok=True)
     exr = folder / f"sky-{key}.exr"
@@ -342,14 +401,33 @@ def render_environment(plan: Plan, cache_dir=None, progress=None, include_sun=Fa
     if progress:
         progress(f"optical profile: {len(wl)} wavelengths")
     prof = plan.profile(wl)
-    cam = core("render.cameras").make_camera("equirectangular", width, center_azimuth_deg=90.0, n_wavelengths=wl.size)
+    # Our sky without the disc is rendered band by band straight to RGB, so only three
+    # values per pixel are kept (a 2048x1024 image at 81 wavelengths would otherwise hold
+    # a 1.4 GB spectral cube plus its working copies); the memory guard counts that.
+    banded = p.sky_model == "ours" and not include_sun
+    cam = core("render.cameras").make_camera("equirectangular", width, center_azimuth_deg=90.0,
+                                             n_wavelengths=3 if banded else wl.size)
     if progress:
         progress(f"spectral render {cam.width}x{cam.height}, quality {p.quality}")
-    img = core("render.sky").render_sky(prof, cam, plan.sun_elevation_deg, plan.sun_azimuth_deg,
-                                        p.observer_altitude_m, p.quality, include_sun=include_sun,
-                                        progress=_Orders(progress))
-    rgb = fit_into_gamut(spectrum_rgb(img.radiance, wl))
-    strength, colour = sun_lamp(img.sun_irradiance, wl)
+    if p.sky_model == "ours":
+        quality = p.quality
+        if planned:  # Auto mode: the plan's orders and Earth's shadow on the quality's settings
+            quality = dataclasses.replace(core("render.sky").quality_settings(p.quality),
+                                          orders=int(p.orders) or None if p.orders is not None else None,
+                                          earth_shadow=bool(p.earth_shadow))
+        sky = core("render.sky")
+        if banded:
+            rgb, sun_irradiance, _ = sky.render_sky_reduced(
+                prof, cam, plan.sun_elevation_deg, lambda rad, w: fit_into_gamut(spectrum_rgb(rad, w)), 3,
+                plan.sun_azimuth_deg, p.observer_altitude_m, quality, progress=_Orders(progress))
+        else:
+            img = sky.render_sky(prof, cam, plan.sun_elevation_deg, plan.sun_azimuth_deg,
+                                 p.observer_altitude_m, quality, include_sun=include_sun, progress=_Orders(progress))
+            rgb, sun_irradiance = fit_into_gamut(spectrum_rgb(img.radiance, wl)), img.sun_irradiance
+    else:
+        radiance, sun_irradiance = model_environment(plan, cam, wl, include_sun)
+        rgb = fit_into_gamut(spectrum_rgb(radiance, wl))
+    strength, colour = sun_lamp(sun_irradiance, wl)
     e_h = horizontal_illuminance(rgb, cam, strength, plan.sun_elevation_deg)
     ev = exposure_from_illuminance(e_h)
     if not np.all(np.isfinite(rgb)):
@@ -374,6 +452,7 @@ def render_environment(plan: Plan, cache_dir=None, progress=None, include_sun=Fa
         "atmosphere": {k: v for k, v in prof.metadata.items() if isinstance(v, (str, int, float, type(None)))},
         "time_utc": plan.time_iso,
         "cache_key": key,
+        "sky_model": p.sky_model,
     }
     write_exr = core("render.image_io").write_exr
     chroma = core("render.image_io").CHROMATICITIES["rec709"]

@@ -51,6 +51,10 @@ def _search_aerosol(self, context, edit_text):
 
 _DEG = math.pi / 180.0
 
+#: Auto mode's per-effect override choices.
+_OVERRIDE_ITEMS = [("AUTO", "Auto", "As the effect planner decides"), ("ON", "On", "Always simulate it"),
+                   ("OFF", "Off", "Never simulate it")]
+
 
 class SkymodelSettings(bpy.types.PropertyGroup):
     # ---- where
@@ -120,10 +124,21 @@ class SkymodelSettings(bpy.types.PropertyGroup):
     # ---- how
     mode: EnumProperty(
         name="Mode", description="How the sky enters the scene",
-        items=[("AUTO", "Auto", "Environment, unless Cycles renders a scene larger than 1 km (then Volumetric)"),
+        items=[("AUTO", "Auto", "The effect planner decides from the scene (cameras, farthest object, "
+                "resolution) what to simulate: environment or volume shells, ozone, aerosols, orders, resolution"),
                ("ENVIRONMENT", "Environment", "Spectral sky image as the world + sun lamp (any engine)"),
                ("VOLUMETRIC", "Volumetric", "Nested atmosphere volumes around the planet + sun lamp (Cycles)")],
         default="ENVIRONMENT")
+    sky_model: EnumProperty(
+        name="Sky Model", description="Where the Environment image comes from (the sun lamp follows the model)",
+        items=[("ours", "Skymodel", "Spectral marcher: Rayleigh, ozone, Mie aerosols, multiple scattering"),
+               ("preetham", "Preetham 1999", "Analytic daylight of Preetham, Shirley & Smits (fast; sun above "
+                "the horizon; turbidity from the AOD)"),
+               ("openspace_earth", "OpenSpace Earth", "The OpenSpace parameterisation of Costa et al. 2021, "
+                "rendered by the spectral marcher"),
+               ("blender", "Blender Sky Texture", "Blender's own Sky Texture node (Multiple Scattering) with "
+                "matched air, aerosol and ozone densities; lamp and exposure from Skymodel")],
+        default="ours")
     quality: EnumProperty(
         name="Quality", description="Accuracy of the spectral render (and image size)",
         items=[("preview", "Preview", "512x256, 10 nm"), ("final", "Final", "1024x512, 5 nm"),
@@ -135,6 +150,27 @@ class SkymodelSettings(bpy.types.PropertyGroup):
                           min=1, max=24, soft_max=16, default=8)
     volume_bounces: IntProperty(name="Volume Bounces", description="Cycles volume bounces (Volumetric mode; "
                                 "0 = single scattering)", min=0, max=64, default=8)
+    # ---- Auto mode: the effect planner (skymodel.planner) and the user's overrides
+    plan_cameras: EnumProperty(
+        name="Plan For", description="Which cameras the plan is for",
+        items=[("ACTIVE", "Active Camera", "The scene's active camera (all cameras when there is none)"),
+               ("ALL", "All Cameras", "Every camera in the scene")], default="ACTIVE")
+    plan_tolerance_kind: EnumProperty(
+        name="Tolerance", description="How the plan's error is measured",
+        items=[("de2000", "Colour (dE2000)", "Mean CIEDE2000 colour difference of the tone-mapped sky"),
+               ("radiance_rel", "Radiance (relative)", "Mean relative luminance error")], default="de2000")
+    plan_tolerance: FloatProperty(
+        name="Tolerance Value", description="Largest error the plan may make (dE2000, or a fraction for radiance)",
+        min=0.001, max=100.0, soft_max=10.0, default=1.0, precision=3)
+    override_multiple_scattering: EnumProperty(name="Multiple Scattering", items=_OVERRIDE_ITEMS, default="AUTO")
+    override_aerosols: EnumProperty(name="Aerosols", items=_OVERRIDE_ITEMS, default="AUTO")
+    override_ozone: EnumProperty(name="Ozone", items=_OVERRIDE_ITEMS, default="AUTO")
+    override_earth_shadow: EnumProperty(name="Earth's Shadow", items=_OVERRIDE_ITEMS, default="AUTO")
+    override_ground_reflection: EnumProperty(name="Ground Reflection", items=_OVERRIDE_ITEMS, default="AUTO")
+    override_sun_disc: EnumProperty(name="Sun Disc", items=_OVERRIDE_ITEMS, default="AUTO")
+    override_aerial_perspective: EnumProperty(name="Volume Shells", items=_OVERRIDE_ITEMS, default="AUTO")
+    override_n_layers: IntProperty(name="Shell Layers", description="Volume layers in Auto mode (0: the planner's)",
+                                   min=0, max=24, default=0)
     pack_image: BoolProperty(name="Pack Image", description="Pack the sky image into the .blend file",
                              default=False)
     set_exposure: BoolProperty(name="Set Exposure", description="Set the view transform (AgX) and the "
@@ -166,6 +202,7 @@ class SkymodelSettings(bpy.types.PropertyGroup):
             image_width=int(self.image_width),
             mode=self.mode,
             n_layers=int(self.n_layers),
+            sky_model=self.sky_model,
         )
 
 

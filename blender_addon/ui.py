@@ -59,13 +59,17 @@ def draw_settings(layout, context):
     col.prop(s, "mode")
     col.prop(s, "quality")
     if s.mode != "VOLUMETRIC":
+        col.prop(s, "sky_model")
         col.prop(s, "image_width")
         col.prop(s, "observer_altitude")
         col.prop(s, "pack_image")
     if s.mode != "ENVIRONMENT":
-        col.prop(s, "n_layers")
+        if s.mode == "VOLUMETRIC":
+            col.prop(s, "n_layers")
         col.prop(s, "volume_bounces")
     col.prop(s, "set_exposure")
+    if s.mode == "AUTO":
+        draw_plan(layout, context, s)
 
     row = layout.row(align=True)
     row.scale_y = 1.4
@@ -79,6 +83,40 @@ def draw_settings(layout, context):
             box.label(text=part)
     else:
         box.label(text="Not built yet", icon="INFO")
+
+
+def draw_plan(layout, context, s):
+    """Auto mode: the effect planner's decisions and reasons, and the overrides."""
+    from . import scene_description
+    from .core import input_error_class
+
+    col = layout.column(align=True)
+    col.prop(s, "plan_cameras")
+    col.prop(s, "plan_tolerance_kind")
+    col.prop(s, "plan_tolerance")
+    box = layout.box()
+    try:
+        plan = scene_description.make_plan(context.scene, s)
+    except input_error_class() as ex:
+        box.label(text=f"No plan: {ex}", icon="ERROR")
+        return
+    except Exception as ex:  # a missing effect table, a broken scene: say so, keep the panel usable
+        box.label(text=f"No plan: {type(ex).__name__}: {ex}", icon="ERROR")
+        return
+    lines = scene_description.plan_lines(plan)
+    box.label(text=lines[0], icon="INFO")
+    for d in plan:
+        row = box.row()
+        state = "on" if d.on else "off"
+        value = scene_description.short_value(d)
+        row.label(text=f"{d.name.replace('_', ' ').capitalize()}: {state}" + (f" ({value})" if value else ""))
+        prop = scene_description.OVERRIDE_PROPS.get(d.name)
+        if prop:
+            row.prop(s, prop, text="")
+        sub = box.column()
+        sub.scale_y = 0.7
+        sub.label(text=d.reason)
+    box.prop(s, "override_n_layers")
 
 
 class WORLD_PT_skymodel(bpy.types.Panel):

@@ -68,6 +68,7 @@ class MarchSettings:
     sun_exact_deg: float = 8.0  # directions this close to the sun are evaluated exactly
     delta_m_cutoff_deg: float = 12.0
     chunk: int = 2048  # directions per batch (memory ~ chunk * view_steps * n_wl * 8 B * 6)
+    earth_shadow: bool = True  # False: the planet blocks no sunlight (for measuring the shadow's effect)
 
 
 @dataclass
@@ -168,6 +169,7 @@ class SkyMarcher:
         self.sun_table = SunTransmittance([self.medium.extinction, self.medium_ms.extinction_scaled,
                                            self.medium.extinction_scaled], self.R,
                                           self.top, s.sun_table_altitudes, s.sun_table_x, s.sun_table_steps)
+        self.sun_table.earth_shadow = bool(s.earth_shadow)
         self.timings = {"tables_s": time.perf_counter() - t_start}
         t1 = time.perf_counter()
         self.field: MultipleScatteringField = solve_multiple_scattering(

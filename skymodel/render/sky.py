@@ -115,3 +115,36 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
     info["sun_pixels"] = int(sun_mask.sum())
     info["quality"] = quality if isinstance(quality, str) else "custom"
     return SkyImage(radiance, valid, dirs, profile.wavelengths_nm, camera, marcher.sun, sun_irr, info)
+
+
+def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce, n_channels: int,
+                       sun_azimuth_deg: float = 180.0, observer_altitude_m: float = 0.0, quality="final",
+                       band_pixels: int = 65536, progress=None):
+    """Render ``camera`` without ever holding the whole spectral cube: the image is marched
+    in bands of about ``band_pixels`` pixels and each band's spectra are reduced at once by
+    ``reduce(radiance (n, n_wl), wavelengths_nm) -> (n, n_channels)`` (e.g. to scene-linear
+    RGB). Memory then grows with the image as ``n_channels`` values per pixel, not
+    ``n_wl``. The sun disc is not added (a renderer that wants it draws a lamp).
+
+    Returns ``(image (H, W, n_channels), sun_irradiance (n_wl,), info)``; invalid pixels are 0.
+    """
+    settings = quality_settings(quality)
+    t0 = time.perf_counter()
+    marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings, progress=progress)
+    dirs, valid = camera.directions()
+    h, w = valid.shape
+    out = np.zeros((h * w, int(n_channels)))
+    flat = dirs.reshape(-1, 3)
+    sel = np.nonzero(valid.ravel())[0]
+    band = max(1, int(band_pixels))
+    sun_irr = marcher.direct_sun_irradiance()
+    info = {}
+    for start in range(0, sel.size, band):
+        idx = sel[start:start + band]
+        res = marcher.radiance(flat[idx])
+        out[idx] = np.asarray(reduce(res.radiance, profile.wavelengths_nm), dtype=float).reshape(idx.size, -1)
+        info = dict(res.info)
+    info["total_s"] = time.perf_counter() - t0
+    info["bands"] = int(np.ceil(sel.size / band)) if sel.size else 0
+    info["quality"] = quality if isinstance(quality, str) else "custom"
+    return out.reshape(h, w, int(n_channels)), sun_irr, info

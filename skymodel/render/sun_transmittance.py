@@ -31,7 +31,15 @@ SUN_ANGULAR_RADIUS_RAD = np.arcsin(695_700.0 / 149_597_870.7)
 
 
 class SunTransmittance:
-    """Optical depth to the top of the atmosphere for several low-rank media at once."""
+    """Optical depth to the top of the atmosphere for several low-rank media at once.
+
+    Setting the attribute ``earth_shadow`` to False (``MarchSettings.earth_shadow`` does;
+    an approximation, for measuring what the shadow does: the effect planner's table)
+    lets the planet block no sunlight: the whole disc counts as
+    visible everywhere, and points under the local horizon get the optical depth of the
+    grazing ray."""
+
+    earth_shadow: bool = True
 
     def __init__(self, media: list[LowRank], ground_radius: float, top_altitude: float,
                  n_altitudes: int = 96, n_x: int = 192, n_steps: int = 256):
@@ -80,7 +88,10 @@ class SunTransmittance:
         return np.clip((d - d_min) / np.maximum(d_max - d_min, 1e-9), 0.0, self.x_nodes[-1])
 
     def visible_fraction(self, altitudes_m, mu_sun):
-        """Fraction of the solar disc above the local horizon (0 in the Earth's shadow)."""
+        """Fraction of the solar disc above the local horizon (0 in the Earth's shadow;
+        1 everywhere when ``earth_shadow`` is False)."""
+        if not self.earth_shadow:
+            return np.ones(np.broadcast_shapes(np.shape(altitudes_m), np.shape(mu_sun)))
         r = self.R + np.maximum(np.asarray(altitudes_m, dtype=float), 0.0)
         sin_horizon = -np.sqrt(np.clip(1.0 - (self.R / r) ** 2, 0.0, 1.0))  # mu of the horizon
         e = np.arcsin(np.clip(mu_sun, -1.0, 1.0)) - np.arcsin(sin_horizon)

@@ -1,0 +1,514 @@
+"""Benchmark: what each effect of the sky contributes, measured with the marcher, for the
+effect planner (``skymodel/planner.py``); and the proof that the planner's plans pay.
+
+Two modes:
+
+``python benchmarks/bench_planner.py [--write]``
+    For a grid of sun elevations, render the sky with every effect on (the reference)
+    and again with one effect switched off or simplified at a time, and record the
+    colour difference (CIEDE2000 of the tone-mapped sky) and the luminance error, for the
+    sky seen directly (by elevation band) and for the sky as lighting (illuminance on a
+    horizontal surface and its colour), plus aerial perspective vs distance. ``--write``
+    stores the table in ``presets/planner/effects.json``.
+
+``python benchmarks/bench_planner.py --proof [--write]`` (``--doc-only``: rewrite the doc from the JSON)
+    For the three example scenes of issue 5, plan with :func:`skymodel.planner.plan`,
+    render the planned build and the everything-on build with the marcher, and report
+    both times and the planned build's error against everything-on; ``--write`` stores
+    the result in ``presets/planner/proof.json`` and the tables in ``docs/planner.md``.
+
+Conventions (the same in both modes)
+------------------------------------
+* Sky seen directly: an equirectangular camera (full sphere, sun disc excluded), errors
+  weighted by pixel solid angle; bands by view elevation: ``ground`` (< 0 deg),
+  ``horizon`` (0..10), ``low`` (10..30), ``high`` (30..90).
+* Tone mapping: XYZ is divided by the luminance of a white horizontal Lambertian surface
+  under the *reference* sky + sun (``E_h,Y / pi``, the add-on's exposure rule), then
+  compressed with Reinhard's global operator on luminance (every channel scaled by
+  ``1 / (1 + Y)``), then CIE Lab (D65 white) and CIEDE2000 (colour-science). Both images
+  use the reference's exposure, so a change of brightness counts as an error.
+* ``radiance_rel``: ``|Y - Y_ref| / Y_ref`` of the per-pixel luminance.
+* Lighting: the spectral irradiance on a horizontal surface, ``sum(L cos(zenith) dOmega)``
+  over the upper hemisphere plus the direct sun; ``illuminance_rel`` is the relative error
+  of its luminance, ``de2000`` the colour difference of XYZ / Y_ref (white = reference).
+* Aerial perspective: a grey Lambertian object (albedo 0.2) lit by the reference
+  irradiance, seen along a horizontal path of length D from the ground:
+  ``L = L_obj T(D) + L_path(D)`` with ``T`` from the profile's extinction along the
+  curved path and ``L_path(D) = L_hor (1 - T(D)) / (1 - T_inf)`` (``L_hor`` the marched
+  radiance 0.5 degrees above the horizon, exact when the source function is constant along the path, i.e. for
+  paths short against the 8 km scale height's curvature length); the error is that of
+  showing ``L_obj`` alone (no atmosphere in between), averaged over azimuths 0, 90 and
+  180 degrees from the sun (``mean``) and the worst of them (``max``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+import os
+import sys
+import time
+from dataclasses import replace
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from common import command_line, git_revision, machine  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+EFFECTS_JSON = os.path.join(ROOT, "presets", "planner", "effects.json")
+PROOF_JSON = os.path.join(ROOT, "presets", "planner", "proof.json")
+DOC = os.path.join(ROOT, "docs", "planner.md")
+
+ELEVATIONS_DEG = (-6, -4, -2, 0, 2, 5, 10, 20, 30, 45, 60, 90)
+DISTANCES_M = (200, 500, 1_000, 2_000, 5_000, 10_000, 20_000, 30_000, 50_000, 100_000)
+BANDS_DEG = {"ground": (-90.0, 0.0), "horizon": (0.0, 10.0), "low": (10.0, 30.0), "high": (30.0, 90.0)}
+OBJECT_ALBEDO = 0.2
+HORIZON_VIEW_DEG = 0.5
+#: Timed runs of each build in the proof (the fastest is reported).
+REPEATS = 3
+LOCATION = "rural"
+MONTH = 6
+
+
+# --------------------------------------------------------------------------- metrics
+
+
+def _lab(xyz_over_white):
+    import colour
+
+    d65 = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
+    return colour.XYZ_to_Lab(xyz_over_white, d65)
+
+
+def _de2000(xyz_a, xyz_b, white_y):
+    """CIEDE2000 between two XYZ arrays (..., 3) after the exposure and Reinhard map."""
+    import colour
+
+    def tone(xyz):
+        x = np.asarray(xyz, float) / white_y
+        return x / (1.0 + np.maximum(x[..., 1:2], 0.0))
+
+    return np.asarray(colour.delta_E(_lab(tone(xyz_a)), _lab(tone(xyz_b)), method="CIE 2000"), float)
+
+
+def _weighted_stats(values, weights):
+    v = np.asarray(values, float).ravel()
+    w = np.asarray(weights, float).ravel()
+    if v.size == 0 or w.sum() <= 0:
+        return 0.0, 0.0
+    mean = float((v * w).sum() / w.sum())
+    order = np.argsort(v)
+    cw = np.cumsum(w[order]) / w.sum()
+    p95 = float(v[order][min(np.searchsorted(cw, 0.95), v.size - 1)])
+    return mean, p95
+
+
+class Reference:
+    """What every comparison needs from the reference render."""
+
+    def __init__(self, radiance, directions, omega, sun_irradiance, sun_elevation_deg, wavelengths_nm):
+        from skymodel.colorimetry import cmf_weights
+
+        self.w = cmf_weights(wavelengths_nm)
+        self.dirs = directions
+        self.omega = omega
+        self.elev = np.degrees(np.arcsin(np.clip(directions[:, 2], -1, 1)))
+        self.xyz = radiance @ self.w
+        self.e_h = horizontal_irradiance(radiance, directions, omega, sun_irradiance, sun_elevation_deg)
+        self.e_h_xyz = self.e_h @ self.w
+        self.white_y = max(float(self.e_h_xyz[1]) / np.pi, 1e-30)
+
+    def compare(self, radiance, sun_irradiance, sun_elevation_deg, wavelengths_nm=None) -> dict:
+        """Errors of a render (its own wavelength grid allowed) against the reference."""
+        from skymodel.colorimetry import cmf_weights
+
+        w = self.w if wavelengths_nm is None else cmf_weights(wavelengths_nm)
+        xyz = radiance @ w
+        de = _de2000(xyz, self.xyz, self.white_y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rel = np.abs(xyz[:, 1] - self.xyz[:, 1]) / np.maximum(self.xyz[:, 1], 1e-30)
+        out = {"sky": {}}
+        for band, (lo, hi) in BANDS_DEG.items():
+            m = (self.elev >= lo) & (self.elev < hi) if hi < 90 else (self.elev >= lo)
+            de_mean, de_p95 = _weighted_stats(de[m], self.omega[m])
+            rel_mean, rel_p95 = _weighted_stats(rel[m], self.omega[m])
+            out["sky"][band] = {"de2000_mean": round(de_mean, 4), "de2000_p95": round(de_p95, 4),
+                                "radiance_rel_mean": round(rel_mean, 5), "radiance_rel_p95": round(rel_p95, 5)}
+        e_h = horizontal_irradiance(radiance, self.dirs, self.omega, sun_irradiance, sun_elevation_deg)
+        exyz = e_h @ w
+        y_ref = max(float(self.e_h_xyz[1]), 1e-30)
+        out["lighting"] = {
+            "illuminance_rel": round(abs(float(exyz[1]) - y_ref) / y_ref, 5),
+            "de2000": round(float(_de2000(exyz, self.e_h_xyz, y_ref)), 4),
+        }
+        return out
+
+
+def horizontal_irradiance(radiance, directions, omega, sun_irradiance, sun_elevation_deg):
+    """Spectral irradiance (W m^-2 nm^-1) on a horizontal surface: sky + direct sun."""
+    cz = directions[:, 2]
+    up = cz > 0
+    sky = (radiance[up] * (cz[up] * omega[up])[:, None]).sum(axis=0)
+    return sky + sun_irradiance * max(np.sin(np.radians(sun_elevation_deg)), 0.0)
+
+
+# --------------------------------------------------------------------------- renders
+
+
+def base_settings():
+    """Preview tables and direction grid, scattering orders until they add < 1e-4."""
+    from skymodel.render.sky import QUALITY
+
+    return replace(QUALITY["preview"], order_tolerance=1e-4)
+
+
+def sky_directions(width):
+    from skymodel.render.cameras import make_camera
+
+    cam = make_camera("equirectangular", width)
+    d, _ = cam.directions()
+    return d.reshape(-1, 3), cam.pixel_solid_angles().ravel()
+
+
+def march(profile, sun_elevation_deg, settings, dirs):
+    from skymodel.render.marcher import SkyMarcher
+
+    t = time.perf_counter()
+    m = SkyMarcher(profile, sun_elevation_deg, 180.0, 0.0, settings)
+    r = m.radiance(dirs)
+    return r.radiance, r.sun_irradiance, time.perf_counter() - t, int(m.field.orders)
+
+
+def variants(profile, settings):
+    """(name, profile, settings) of every simplification measured."""
+    z = np.zeros_like
+    out = [
+        ("ozone_off", profile.with_(ozone_absorption=z(profile.ozone_absorption)), settings),
+        ("aerosols_off", profile.with_(aerosol_scattering_by_regime=z(profile.aerosol_scattering_by_regime),
+                                       aerosol_absorption=z(profile.aerosol_absorption)), settings),
+        ("ground_albedo_0", profile.with_(ground_albedo=z(profile.ground_albedo)), settings),
+        ("earth_shadow_off", profile, replace(settings, earth_shadow=False)),
+    ]
+    out += [(f"orders_{n}", profile, replace(settings, orders=n)) for n in (1, 2, 3, 4)]
+    out += [(f"layers_{n}", profile.layered(n_layers=n), settings) for n in (4, 8, 16, 24)]
+    return out
+
+
+def aerial_perspective(profile, ref_radiance_fn, e_h, w, sun_elevation_deg):
+    """Error of leaving out the air between the camera and an object, vs distance."""
+    from skymodel.geometry import EARTH_RADIUS_M
+
+    R = EARTH_RADIUS_M
+    rel_az = np.radians([0.0, 90.0, 180.0])
+    az = np.radians(180.0) + rel_az
+    # the sky just above the horizon (0.5 degrees: a horizontal ray from the ground is the
+    # sky/ground edge of the marcher's direction grid)
+    e = np.radians(HORIZON_VIEW_DEG)
+    dirs = np.stack([np.cos(e) * np.sin(az), np.cos(e) * np.cos(az), np.full_like(az, np.sin(e))], axis=1)
+    l_hor = ref_radiance_fn(dirs)  # (3, n_wl)
+    s = np.linspace(0.0, 400_000.0, 4001)
+    h = np.sqrt(R * R + s * s) - R
+    ext = profile.sample(h).extinction  # (n_s, n_wl)
+    tau = np.concatenate([np.zeros((1, ext.shape[1])), np.cumsum(0.5 * (ext[1:] + ext[:-1]) * np.diff(s)[:, None], axis=0)])
+    t_inf = np.exp(-tau[-1])
+    l_obj = OBJECT_ALBEDO * e_h / np.pi
+    white_y = max(float(e_h @ w[:, 1]) / np.pi, 1e-30)
+    rows = []
+    for dist in DISTANCES_M:
+        t_d = np.exp(-np.array([np.interp(dist, s, tau[:, k]) for k in range(tau.shape[1])]))
+        l_path = l_hor * ((1.0 - t_d) / np.maximum(1.0 - t_inf, 1e-12))[None, :]
+        seen = l_obj[None, :] * t_d[None, :] + l_path
+        de = _de2000(np.broadcast_to(l_obj @ w, (3, 3)), seen @ w, white_y)
+        y_seen = seen @ w[:, 1]
+        rel = np.abs(float(l_obj @ w[:, 1]) - y_seen) / np.maximum(y_seen, 1e-30)
+        rows.append({"distance_m": dist, "de2000_mean": round(float(de.mean()), 4),
+                     "de2000_max": round(float(de.max()), 4), "radiance_rel_mean": round(float(rel.mean()), 5),
+                     "radiance_rel_max": round(float(rel.max()), 5),
+                     "transmittance_550": round(float(np.interp(550.0, profile.wavelengths_nm, t_d)), 5)})
+    return rows
+
+
+def measure_effects(elevations, width, step_nm):
+    from skymodel import Atmosphere
+    from skymodel.render.marcher import SkyMarcher
+    from skymodel.wavelengths import default_wavelengths
+
+    wl = default_wavelengths(step_nm)
+    prof = Atmosphere(location=LOCATION, month=MONTH).optical_profile(wl)
+    dirs, omega = sky_directions(width)
+    settings = base_settings()
+    table = []
+    for el in elevations:
+        t0 = time.perf_counter()
+        marcher = SkyMarcher(prof, el, 180.0, 0.0, settings)
+        res = marcher.radiance(dirs)
+        t_ref = time.perf_counter() - t0
+        ref = Reference(res.radiance, dirs, omega, res.sun_irradiance, el, wl)
+        entry = {"sun_elevation_deg": el, "reference": {"time_s": round(t_ref, 3), "orders": int(marcher.field.orders)},
+                 "effects": {}}
+        for name, p, s in variants(prof, settings):
+            rad, sun_irr, t, n = march(p, el, s, dirs)
+            entry["effects"][name] = dict(ref.compare(rad, sun_irr, el), time_s=round(t, 3), orders=n)
+        # coarser spectral grids: render on the coarse grid, interpolate back (what a
+        # coarse render's colours are computed from)
+        for coarse in (2 * step_nm, 4 * step_nm):
+            wlc = default_wavelengths(coarse)
+            pc = Atmosphere(location=LOCATION, month=MONTH).optical_profile(wlc)
+            rad, sun_irr, t, n = march(pc, el, settings, dirs)
+            rad_f = np.stack([np.interp(wl, wlc, r) for r in rad])
+            sun_f = np.interp(wl, wlc, sun_irr)
+            entry["effects"][f"wavelength_step_{coarse:g}"] = dict(ref.compare(rad_f, sun_f, el), time_s=round(t, 3),
+                                                                   orders=n, n_wavelengths=int(wlc.size))
+        entry["aerial_perspective"] = aerial_perspective(
+            prof, lambda d: marcher.radiance(d).radiance, ref.e_h, ref.w, el)
+        table.append(entry)
+        print(f"sun {el:+5.1f} deg: reference {t_ref:.2f} s, {marcher.field.orders} orders; "
+              + ", ".join(f"{k} {v['sky']['high']['de2000_mean']:.2f}/{v['lighting']['de2000']:.2f}"
+                          for k, v in entry["effects"].items()), flush=True)
+    return {
+        "description": "Error caused by switching off or simplifying each effect of the sky, measured with the "
+                       "marcher against the everything-on render (see benchmarks/bench_planner.py for the "
+                       "conventions: tone mapping, bands, lighting, aerial perspective).",
+        "source": "measured: skymodel ray marcher (skymodel/render/marcher.py), this repository",
+        "machine": machine(),
+        "git_revision": git_revision(),
+        "command": command_line(),
+        "date": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "atmosphere": {"location": LOCATION, "month": MONTH},
+        "camera": {"camera": "equirectangular", "width": width, "height": width // 2},
+        "wavelength_step_nm": step_nm,
+        "settings": {k: v for k, v in vars(settings).items()},
+        "bands_deg": BANDS_DEG,
+        "object_albedo": OBJECT_ALBEDO,
+        "rows": table,
+    }
+
+
+# --------------------------------------------------------------------------- proof
+
+
+def proof_scenes():
+    """The three example scenes of issue 5 (the product shot also with a tight tolerance),
+    as the planner sees them; the tolerances are ours (the issue names none)."""
+    from skymodel.planner import CameraView, SceneDescription
+
+    return {
+        "product_noon": SceneDescription(
+            cameras=[CameraView(altitude_m=1.7, view_directions=[(0.0, 1.0, -0.1)], fov_deg=40.0)],
+            sun_elevation_deg=60.0, farthest_object_m=200.0, sky_visible=True, image_width=1920,
+            image_height=1080, tolerance_kind="de2000", tolerance=5.0),
+        "product_noon_tight": SceneDescription(
+            cameras=[CameraView(altitude_m=1.7, view_directions=[(0.0, 1.0, -0.1)], fov_deg=40.0)],
+            sun_elevation_deg=60.0, farthest_object_m=200.0, sky_visible=True, image_width=1920,
+            image_height=1080, tolerance_kind="de2000", tolerance=1.0),
+        "landscape_sun5": SceneDescription(
+            cameras=[CameraView(altitude_m=1.7, view_directions=[(0.0, 1.0, 0.05)], fov_deg=60.0)],
+            sun_elevation_deg=5.0, farthest_object_m=30_000.0, sky_visible=True, image_width=1920,
+            image_height=1080, tolerance_kind="de2000", tolerance=2.0),
+        "twilight_sky": SceneDescription(
+            cameras=[CameraView(altitude_m=0.0, min_elevation_deg=0.0, max_elevation_deg=90.0, fov_deg=180.0)],
+            sun_elevation_deg=-4.0, farthest_object_m=0.0, sky_visible=True, image_width=2048,
+            image_height=1024, tolerance_kind="de2000", tolerance=2.0),
+    }
+
+
+def _timed(fn):
+    t = time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - t
+
+
+def run_proof(write: bool, width: int) -> int:
+    from skymodel import Atmosphere
+    from skymodel.planner import plan
+    from skymodel.render.marcher import SkyMarcher
+    from skymodel.render.sky import QUALITY
+    from skymodel.wavelengths import default_wavelengths
+
+    dirs, omega = sky_directions(width)
+    atm = Atmosphere(location=LOCATION, month=MONTH)
+    wl_all = default_wavelengths(5.0)
+    results = {}
+    for name, scene in proof_scenes().items():
+        p = plan(scene)
+        el = scene.sun_elevation_deg
+
+        def everything():
+            prof = atm.optical_profile(wl_all)
+            m = SkyMarcher(prof, el, 180.0, 0.0, QUALITY["final"])
+            return m, m.radiance(dirs)
+
+        def planned():
+            wl = default_wavelengths(p.wavelength_step_nm)
+            prof = p.apply_to_profile(atm.optical_profile(wl))
+            if p.n_layers:
+                prof = prof.layered(n_layers=p.n_layers)
+            m = SkyMarcher(prof, el, 180.0, 0.0, p.march_settings(QUALITY["final"]))
+            return m, m.radiance(dirs)
+
+        (m_all, r_all), t_all = _timed(everything)
+        (m_plan, r_plan), t_plan = _timed(planned)
+        times_all, times_plan = [t_all], [t_plan]
+        for _ in range(REPEATS - 1):  # alternate, so that a change of the machine's load hits both alike
+            times_plan.append(_timed(planned)[1])
+            times_all.append(_timed(everything)[1])
+        ref = Reference(r_all.radiance, dirs, omega, r_all.sun_irradiance, el, wl_all)
+        cmp = ref.compare(r_plan.radiance, r_plan.sun_irradiance, el, m_plan.profile.wavelengths_nm)
+        from skymodel.planner import visible_bands
+
+        bands = visible_bands(scene)
+        sky_err = max([cmp["sky"][b]["de2000_mean"] for b in bands] or [0.0])
+        err = max(sky_err, cmp["lighting"]["de2000"])
+        out = {"scene": {"sun_elevation_deg": el, "farthest_object_m": scene.farthest_object_m,
+                         "sky_visible": scene.sky_visible, "view_elevation_deg": scene.elevation_range_deg,
+                         "tolerance": scene.tolerance, "tolerance_kind": scene.tolerance_kind},
+               "plan": {k: {"on": d.on, "value": d.value, "reason": d.reason,
+                            "predicted_error": round(d.predicted_error, 4)} for k, d in p.decisions.items()},
+               "predicted_error": round(p.predicted_error, 4),
+               "time_everything_s": round(min(times_all), 3), "time_planned_s": round(min(times_plan), 3),
+               "times_everything_s": [round(t, 3) for t in times_all],
+               "times_planned_s": [round(t, 3) for t in times_plan],
+               "orders_everything": int(m_all.field.orders), "orders_planned": int(m_plan.field.orders),
+               "measured_error": round(err, 4), "sky_error_by_band": cmp["sky"], "lighting_error": cmp["lighting"]}
+        if scene.farthest_object_m > 0:
+            # the farthest object's colour seen through the planned medium vs the everything-on one
+            from skymodel.colorimetry import cmf_weights
+
+            e_plan = horizontal_irradiance(r_plan.radiance, dirs, omega, r_plan.sun_irradiance, el)
+            wl_p = m_plan.profile.wavelengths_nm
+            ap_all = aerial_perspective(m_all.profile, lambda d: m_all.radiance(d).radiance, ref.e_h, ref.w, el)
+            ap_plan = aerial_perspective(m_plan.profile, lambda d: m_plan.radiance(d).radiance, e_plan,
+                                         cmf_weights(wl_p), el)
+            pick = min(range(len(DISTANCES_M)), key=lambda i: abs(DISTANCES_M[i] - scene.farthest_object_m))
+            out["object"] = {"distance_m": DISTANCES_M[pick],
+                             "transmittance_550_everything": ap_all[pick]["transmittance_550"],
+                             "transmittance_550_planned": ap_plan[pick]["transmittance_550"]}
+        out["time_saving"] = round(1.0 - out["time_planned_s"] / out["time_everything_s"], 3)
+        out["load_average_1min"] = round(os.getloadavg()[0], 2)
+        results[name] = out
+        print(f"{name}: everything {out['time_everything_s']:.2f} s, planned {out['time_planned_s']:.2f} s "
+              f"({out['time_saving']:.0%} saved); error {err:.2f} (predicted {p.predicted_error:.2f}, "
+              f"tolerance {scene.tolerance:g})", flush=True)
+        for line in p.summary():
+            print("   ", line)
+    meta = {"machine": machine(), "git_revision": git_revision(), "command": command_line(),
+            "date": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            "camera": {"camera": "equirectangular", "width": width, "height": width // 2},
+            "everything_on": "quality 'final', 5 nm (81 wavelengths), smooth profile, all effects",
+            "repeats": REPEATS,
+            "source": "measured: skymodel ray marcher, this repository", "scenes": results}
+    if write:
+        with open(PROOF_JSON, "w", encoding="utf-8") as f:
+            json.dump(meta, f, indent=1, default=str)
+            f.write("\n")
+        print(f"wrote {PROOF_JSON}")
+        write_doc(meta)
+    return 0
+
+
+def write_doc(meta):
+    """The measured sections of docs/planner.md (the prose around them is hand-written)."""
+    from common import update_section
+
+    from skymodel.planner import load_table
+
+    cmd = "python benchmarks/bench_planner.py --proof --write"
+    cam = meta["camera"]
+    lines = [f"Measured {meta['date']} on {meta['machine']} (git {meta['git_revision']}); regenerate with:", "",
+             f"    {cmd}", "",
+             f"Both builds rendered with the marcher on an equirectangular camera of {cam['width']}x{cam['height']} "
+             "(a reduced size; the plan's angular-resolution decision is the width Blender gets). Everything on: "
+             + meta["everything_on"] + ". Planned: the plan's spectral grid, orders, medium (effects left out "
+             "removed from the profile) and, with shells, the layered profile. Times: the fastest of "
+             + str(meta.get("repeats", 2)) + " alternated runs of each build. Error: the planner's metric (mean "
+             "CIEDE2000 of the tone-mapped sky over the view bands the cameras see, or of the light on a horizontal "
+             "surface, whichever is larger) of the planned render against the everything-on render. The "
+             "tolerances are ours (the issue names none).", "",
+             "| scene | sun | tolerance (dE2000) | plan | everything on (s) | planned (s) | time saved | "
+             "predicted error | measured error |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for name, r in meta["scenes"].items():
+        pl = r["plan"]
+        off = [k for k in ("aerosols", "ozone", "earth_shadow", "ground_reflection") if not pl[k]["on"]]
+        ms = pl["multiple_scattering"]
+        shells = pl["aerial_perspective"]
+        desc = ("shells: " + str(shells["value"]["n_layers"]) + " layers" if shells["on"] else "environment only")
+        desc += f"; orders {ms['value'] if ms['value'] is not None else 'until converged'}"
+        desc += f"; {pl['spectral_resolution']['value']:g} nm"
+        desc += "; off: " + (", ".join(k.replace('_', ' ') for k in off) if off else "none")
+        lines.append(f"| {name} | {r['scene']['sun_elevation_deg']:g} | {r['scene']['tolerance']:g} | {desc} | "
+                     f"{r['time_everything_s']:.2f} | {r['time_planned_s']:.2f} | {r['time_saving']:.0%} | "
+                     f"{r['predicted_error']:.2f} | {r['measured_error']:.2f} |")
+    loads = [r.get("load_average_1min") for r in meta["scenes"].values() if r.get("load_average_1min") is not None]
+    lines += ["", "The predicted error counts what the tables measure: the effect table's reference grid is 10 nm, "
+              "so the difference between a 10 nm plan and the 5 nm everything-on build is not predicted until "
+              "`presets/accuracy/measured.json` (its `wavelengths` rows) exists; the measured error includes it. "
+              "The prediction also counts the aerial-perspective error on objects left to the environment (product "
+              "shots: objects 200 m away), which a sky render does not contain. "
+              "The machine is shared" + (f" (1-minute load average {min(loads):.1f}-{max(loads):.1f} on its "
+                                         f"{os.cpu_count()} cores during the runs)" if loads else "")
+              + ": times vary from run to run, the two builds of a scene were timed alternately."]
+    lines += ["", "Per band and for the light (measured error of the planned build):", "",
+              "| scene | ground | horizon (0-10°) | low (10-30°) | high (30-90°) | light dE2000 | light illuminance |",
+              "|---|---|---|---|---|---|---|"]
+    for name, r in meta["scenes"].items():
+        b = r["sky_error_by_band"]
+        lines.append(f"| {name} | " + " | ".join(f"{b[k]['de2000_mean']:.2f}" for k in ("ground", "horizon", "low", "high"))
+                     + f" | {r['lighting_error']['de2000']:.2f} | {r['lighting_error']['illuminance_rel']:.1%} |")
+    update_section(DOC, "## Measured: planned vs everything on", "\n".join(lines))
+    eff = load_table(EFFECTS_JSON)
+    if eff:
+        head = ["ozone_off", "aerosols_off", "ground_albedo_0", "earth_shadow_off", "orders_1", "orders_2",
+                "orders_4", "wavelength_step_20", "wavelength_step_40", "layers_8", "layers_16", "layers_24"]
+        head = [h for h in head if all(h in row["effects"] for row in eff["rows"])]
+        t = [f"From `presets/planner/effects.json` ({eff['date']}, {eff['machine']}); regenerate with:", "",
+             "    python benchmarks/bench_planner.py --write", "",
+             "Mean CIEDE2000 of switching one effect off (or simplifying it), for the sky 30-90° above the horizon "
+             "/ for the light on a horizontal surface; rural aerosol, June; reference: every effect on, "
+             f"{eff['wavelength_step_nm']:g} nm, scattering until an order adds < 1e-4.", "",
+             "| sun (°) | " + " | ".join(h.replace("_", " ") for h in head) + " | 30 km aerial (dE mean) |",
+             "|---" * (len(head) + 2) + "|"]
+        for row in eff["rows"]:
+            ap = next((a for a in row["aerial_perspective"] if a["distance_m"] == 30_000), None)
+            t.append(f"| {row['sun_elevation_deg']:g} | " + " | ".join(
+                f"{row['effects'][h]['sky']['high']['de2000_mean']:.2f} / {row['effects'][h]['lighting']['de2000']:.2f}"
+                for h in head) + f" | {ap['de2000_mean']:.1f} |" if ap else " | - |")
+        update_section(DOC, "## Measured: what each effect does", "\n".join(t))
+    print(f"updated {DOC}")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--proof", action="store_true", help="render the three example scenes planned vs everything on")
+    ap.add_argument("--write", action="store_true", help="write the results (presets/planner, docs/planner.md)")
+    ap.add_argument("--width", type=int, default=64, help="equirectangular width of the effect table's renders")
+    ap.add_argument("--step", type=float, default=10.0, help="wavelength step (nm) of the reference")
+    ap.add_argument("--doc-only", action="store_true",
+                    help="rewrite the measured sections of docs/planner.md from the stored JSON files")
+    ap.add_argument("--proof-width", type=int, default=256, help="equirectangular width of the proof renders")
+    ap.add_argument("--elevations", default=",".join(str(e) for e in ELEVATIONS_DEG))
+    args = ap.parse_args(argv)
+    if args.doc_only:
+        with open(PROOF_JSON, encoding="utf-8") as f:
+            write_doc(json.load(f))
+        return 0
+    if args.proof:
+        return run_proof(args.write, args.proof_width)
+    elevations = [float(e) for e in args.elevations.split(",")]
+    out = measure_effects(elevations, args.width, args.step)
+    text = json.dumps(out, indent=1, default=str)
+    if args.write:
+        os.makedirs(os.path.dirname(EFFECTS_JSON), exist_ok=True)
+        with open(EFFECTS_JSON, "w", encoding="utf-8") as f:
+            f.write(text + "\n")
+        print(f"wrote {EFFECTS_JSON}")
+    else:
+        print(text[:2000])
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
