@@ -4,12 +4,13 @@ Volume Scatter lobes, the accuracy study of what the full Mie table buys).
 
 HG (Henyey & Greenstein 1941): p(mu) = (1 - g^2) / (4 pi (1 + g^2 - 2 g mu)^1.5), normalised
 over 4 pi, with asymmetry parameter g.
-* ``fit_hg`` takes g equal to the table's asymmetry parameter <mu> (moment matching: the
+* HG (``fit_phase``: ``g``) takes g equal to the table's asymmetry parameter <mu> (moment matching: the
   choice that keeps the diffusion of light, and so multiple scattering, right).
-* ``fit_double_hg`` fits p = w HG(g1) + (1 - w) HG(g2) (g1 > 0 forward, g2 < 0 backward lobe)
-  by least squares on log p over the angle grid with the first moment constrained to the
-  table's, so the asymmetry is kept exactly and the shape (forward peak, back-scatter) is
-  matched as well as two lobes allow.
+* DHG (``fit_phase``: ``dhg_w``, ``dhg_g1``, ``dhg_g2``) fits p = w HG(g1) + (1 - w) HG(g2) with g2 < g < g1 (a sharper forward
+  lobe and a broader or backward one) by least squares on log p over the angle grid, with
+  the first moment constrained to the table's (w = (g - g2) / (g1 - g2), in (0, 1) by
+  construction), so the asymmetry is kept exactly and the shape (forward peak,
+  back-scatter) is matched as well as two lobes allow.
 The fit error reported is the RMS of log(p_fit / p_table) over the sphere (solid-angle
 weighted), i.e. roughly the typical relative error of the phase function.
 """
@@ -67,6 +68,10 @@ class PhaseFit:
         return self.dhg_w * hg(mu, self.dhg_g1) + (1 - self.dhg_w) * hg(mu, self.dhg_g2)
 
 
+#: largest |g| of a fitted lobe
+G_MAX = 0.999
+
+
 def fit_phase(angles_deg, phase) -> PhaseFit:
     """Fit HG and DHG to every column of ``phase`` (n_angle, n_wl) on ``angles_deg``."""
     ang = np.asarray(angles_deg, float)
@@ -79,18 +84,32 @@ def fit_phase(angles_deg, phase) -> PhaseFit:
         p = tab[:, j]
         out["e_hg"][j] = _rms_log_error(ang, p, hg(mu, g))
 
+        # g1 in (g, G_MAX) and g2 in (-G_MAX, g), so the weight that keeps the first
+        # moment, w = (g - g2) / (g1 - g2), always lies in (0, 1): the asymmetry is kept
+        # exactly (a free (g1, g2) pair could need w outside [0, 1], and clipping it there
+        # silently changed the asymmetry)
+        lo, hi = g, G_MAX
+
+        def lobes(x):
+            s1, s2 = 0.5 * (1.0 + np.tanh(x[0])), 0.5 * (1.0 + np.tanh(x[1]))
+            return lo + (hi - lo) * s1, -G_MAX + (lo + G_MAX) * s2
+
         def model(x):
-            g1, g2 = np.tanh(x[0]), np.tanh(x[1])
-            # weight from the moment constraint w g1 + (1 - w) g2 = g
-            w = np.clip((g - g2) / (g1 - g2), 0.0, 1.0) if abs(g1 - g2) > 1e-9 else 1.0
+            g1, g2 = lobes(x)
+            w = (g - g2) / (g1 - g2) if g1 - g2 > 1e-12 else 1.0
             return w, g1, g2, w * hg(mu, g1) + (1 - w) * hg(mu, g2)
 
         def resid(x):
             return np.log(np.maximum(model(x)[3], 1e-300)) - np.log(np.maximum(p, 1e-300))
 
+        def start(g1_0, g2_0):
+            s1 = np.clip((g1_0 - lo) / (hi - lo), 1e-3, 1 - 1e-3)
+            s2 = np.clip((g2_0 + G_MAX) / (lo + G_MAX), 1e-3, 1 - 1e-3)
+            return [np.arctanh(2 * s1 - 1), np.arctanh(2 * s2 - 1)]
+
         best = None
-        for g1_0, g2_0 in ((min(0.95, g + 0.1), -0.3), (min(0.98, g + 0.2), -0.1), (g, -0.6)):
-            sol = least_squares(resid, x0=[np.arctanh(g1_0), np.arctanh(g2_0)], method="lm", max_nfev=400)
+        for g1_0, g2_0 in ((g + 0.1, -0.3), (g + 0.2, -0.1), (g + 0.02, -0.6), (0.5 * (g + G_MAX), g - 0.3)):
+            sol = least_squares(resid, x0=start(min(g1_0, 0.995), g2_0), method="lm", max_nfev=400)
             if best is None or sol.cost < best.cost:
                 best = sol
         w, g1, g2, pm = model(best.x)

@@ -24,3 +24,18 @@ def test_double_hg_recovers_known_lobes():
     assert f.dhg_error[0] < 0.01 < f.hg_error[0]  # one lobe cannot match a two-lobe function
     assert f.hg_error[1] < 1e-3  # a pure HG table is fitted by HG
     np.testing.assert_allclose(asymmetry(ANG, f.dhg_table(ANG)), asymmetry(ANG, tab), atol=3e-3)
+
+
+def test_double_hg_keeps_the_asymmetry_of_the_aerosol_tables():
+    """Every regime and wavelength of a real profile: the DHG fit's first moment equals the
+    table's (it is a constraint of the fit, not a result of the optimiser), and its weight
+    is a proper mixture weight."""
+    from skymodel import Atmosphere
+
+    prof = Atmosphere(location="rural", month=6).optical_profile([380, 450, 550, 650, 780])
+    for r in range(prof.aerosol_phase.shape[0]):
+        tab = prof.aerosol_phase[r]
+        f = fit_phase(prof.aerosol_phase_angles_deg, tab)
+        assert np.all((f.dhg_w > 0) & (f.dhg_w <= 1))
+        np.testing.assert_allclose(f.dhg_w * f.dhg_g1 + (1 - f.dhg_w) * f.dhg_g2, f.g, atol=1e-9)
+        assert np.all(f.dhg_error <= f.hg_error + 1e-9)  # two lobes never fit worse than one
