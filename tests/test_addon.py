@@ -21,32 +21,13 @@ pytestmark = pytest.mark.blender
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 
 
-@pytest.fixture(scope="module")
-def addon():
-    import blender_addon
-
-    if not hasattr(bpy.types.World, "skymodel"):
-        blender_addon.register()
-    yield blender_addon
-    if hasattr(bpy.types.World, "skymodel"):
-        blender_addon.unregister()
-
-
 @pytest.fixture
-def scene(addon):
-    """A fresh empty file with a world; the add-on registered."""
+def scene(new_sky_scene):
+    """A fresh empty file with a world; the add-on registered (``addon``, tests/conftest.py)."""
     from blender_addon import builder
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    if not hasattr(bpy.types.World, "skymodel"):
-        addon.register()
     builder.FAIL_AT = None
-    sc = bpy.context.scene
-    sc.world = bpy.data.worlds.new("World")
-    s = sc.world.skymodel
-    s.location = "rural"
-    s.image_width = 64
-    s.quality = "preview"
+    sc = new_sky_scene(image_width=64)
     yield sc
     builder.FAIL_AT = None
 

@@ -16,23 +16,13 @@ pytestmark = pytest.mark.blender
 
 
 @pytest.fixture
-def scene():
-    import blender_addon
-
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    if not hasattr(bpy.types.World, "skymodel"):
-        blender_addon.register()
-    sc = bpy.context.scene
-    sc.world = bpy.data.worlds.new("World")
+def scene(new_sky_scene):
+    """A fresh world in Environment mode, sun at 35 degrees (tests/conftest.py)."""
+    sc = new_sky_scene(image_width=32)
     s = sc.world.skymodel
-    s.location = "rural"
-    s.image_width = 32
-    s.quality = "preview"
     s.mode = "ENVIRONMENT"
     s.sun_elevation = math.radians(35.0)
-    yield sc
-    if hasattr(bpy.types.World, "skymodel"):
-        blender_addon.unregister()
+    return sc
 
 
 def _pixels(img):

@@ -16,30 +16,12 @@ bpy = pytest.importorskip("bpy")
 pytestmark = pytest.mark.blender
 
 
-@pytest.fixture(scope="module")
-def addon():
-    import blender_addon
-
-    if not hasattr(bpy.types.World, "skymodel"):
-        blender_addon.register()
-    yield blender_addon
-    if hasattr(bpy.types.World, "skymodel"):
-        blender_addon.unregister()
-
-
 @pytest.fixture
-def scene(addon):
+def scene(new_sky_scene):
     """An empty file with a world (sun at 60 degrees, tiny images), the add-on in Auto mode,
     and a camera 1.7 m above the ground looking north, level."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    if not hasattr(bpy.types.World, "skymodel"):
-        addon.register()
-    sc = bpy.context.scene
-    sc.world = bpy.data.worlds.new("World")
+    sc = new_sky_scene(image_width=64)
     s = sc.world.skymodel
-    s.location = "rural"
-    s.quality = "preview"
-    s.image_width = 64
     s.mode = "AUTO"
     s.sun_elevation = math.radians(60.0)
     s.plan_tolerance = 1.0
