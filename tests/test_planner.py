@@ -235,6 +235,23 @@ def test_predictions_follow_the_accuracy_table(effects, accuracy):
     assert plan(scene, effects=effects, accuracy=faster).predicted_time_everything_s == pytest.approx(expected / 4)
 
 
+def test_the_accuracy_table_in_presets_is_read_by_default(effects):
+    """With presets/accuracy/measured.json present, a plan prices its spectral grid against the
+    5 nm build from that table (the effect table's own reference is 10 nm, so it could not)."""
+    from skymodel.planner import ACCURACY_PATH
+
+    acc = load_table(ACCURACY_PATH)
+    if acc is None:
+        pytest.skip("presets/accuracy/measured.json is absent (skymodel bench accuracy)")
+    for make in (product_shot, landscape, twilight):
+        p = plan(make(), effects=effects)
+        assert "accuracy table" in p.time_basis
+        spec = p["spectral_resolution"]
+        assert spec.source.startswith("measured.json wavelengths=")
+        assert spec.predicted_error > 0.0  # even a 10 nm grid: its difference to 5 nm is counted
+        assert plan(make(), effects=effects, accuracy=None)["spectral_resolution"].source.startswith("effects.json")
+
+
 def test_missing_accuracy_table_falls_back_to_the_effect_table(effects, tmp_path):
     p = plan(twilight(), effects=effects, accuracy=str(tmp_path / "absent.json"))
     assert "effect table" in p.time_basis
