@@ -140,3 +140,20 @@ def test_agrees_with_monte_carlo(aod, elev, bias):
     mc = trace_radiance(prof, d, elev, 180.0, n_paths=6000, seed=11)
     r = SkyMarcher(prof, elev, 180.0, 0.0, MarchSettings(exact=True)).radiance(d).radiance
     assert np.all(np.abs(r - mc.radiance) < 4 * mc.stderr + bias * mc.radiance)
+
+
+def test_chunk_size_does_not_change_the_result():
+    """Directions are marched in chunks (memory ~ chunk), the near-sun ones included: the
+    chunk size changes nothing."""
+    from dataclasses import replace
+
+    from skymodel import Atmosphere
+    from skymodel.render.sky import quality_settings
+
+    prof = Atmosphere(location="rural", month=6).optical_profile([450, 650])
+    d = np.random.default_rng(1).normal(size=(600, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    s = replace(quality_settings("preview"), sun_exact_deg=60.0)
+    whole = SkyMarcher(prof, 30.0, 180.0, 0.0, replace(s, chunk=100_000)).radiance(d).radiance
+    pieces = SkyMarcher(prof, 30.0, 180.0, 0.0, replace(s, chunk=37)).radiance(d).radiance
+    np.testing.assert_array_equal(whole, pieces)

@@ -315,8 +315,9 @@ class SkyMarcher:
         else:
             single, multiple, ground = self._from_grid(d)
             near = np.nonzero(d @ self.sun > np.cos(np.radians(self.settings.sun_exact_deg)))[0]
-            if near.size:
-                single[near], multiple[near], ground[near] = self._exact(d[near])
+            for i in range(0, near.size, self.settings.chunk):  # in chunks: memory ~ chunk
+                idx = near[i:i + self.settings.chunk]
+                single[idx], multiple[idx], ground[idx] = self._exact(d[idx])
         info = {"orders": self.field.orders, "order_contributions": list(self.field.order_contributions),
                 "timings": dict(self.timings, directions_s=time.perf_counter() - t_start),
                 "settings": self.settings}
