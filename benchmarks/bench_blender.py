@@ -3,8 +3,10 @@
     python benchmarks/bench_blender.py projection [--location desert --elevations 60,20,5,1]
     python benchmarks/bench_blender.py cycles     [--size 128x64 --samples 256 --layers 8]
     python benchmarks/bench_blender.py timings
-    python benchmarks/bench_blender.py crossval   [--without-fixes]
+    python benchmarks/bench_blender.py crossval   [--without-fixes] [--case-aerosol rural --case-layers 8
+                                               --case-samples 64 --hg-lowest-ball --no-converged]
     python benchmarks/bench_blender.py issue      [--write]   (~10 min on a loaded 2-core machine)
+    python benchmarks/bench_blender.py environment [--write --qualities preview,final,reference]  (~8 min)
 
 ``projection`` (no bpy): what Cycles is asked to render vs the spectral truth, both
 computed by the core's marcher so that no Monte Carlo noise enters:
@@ -26,12 +28,21 @@ transport (volume bounces) on top of the projection.
 per region, the Monte Carlo noise, and the marcher's own error (test settings vs a 4096-node march
 with finer sun tables); ``--without-fixes`` renders it with the add-on's two Cycles fixes switched
 off (volume apex on the axis, species' own coefficients in the closures) to show what they fix.
+The ``--case-*`` options render another case than the test's (tropospheric aerosol, layers,
+samples per seed), ``--hg-lowest-ball`` moves the tropospheric aerosol into the lowest ball alone
+(both sides), ``--no-converged`` skips the 4096-node march: the diagnostics of the open
+tropospheric-aerosol difference in docs/blender.md.
+
+``environment`` (bpy): only that first item, plus the banded-vs-unbanded check of the add-on's
+environment at 512x256 (no bpy); ``--write`` replaces only its table in docs/benchmarks.md.
 
 ``issue`` (bpy): the benchmarks of issue 4, written to docs/benchmarks.md (section "Blender")
 with ``--write``:
 
-* Build Sky in environment mode at each quality (cold cache: the core's spectral render and the
-  EXR; the Blender side adds < 1 s);
+* Build Sky in environment mode at each quality (cold cache: the core's render and the EXR; the
+  Blender side adds < 1 s), each in a fresh Python process (``env-row``, internal) for its time,
+  its peak resident memory (VmHWM; ru_maxrss would carry the parent's) and an image check
+  (finite, >= 0, zenith bluer than the horizon);
 * a volumetric Cycles render at 256x128 for 16/64/256 samples (single scattering, the
   cross-validation medium), its time and its difference from the marcher's image of the same
   RGB shells (per region, with the noise, and per pixel);
@@ -222,26 +233,62 @@ def _region_table(c1, c2, model, masks):
     return out
 
 
+def _hg_in_lowest_ball(volumetric):
+    """Diagnostic variant of the medium (both Cycles and the marcher): the tropospheric
+    aerosol (regime 0) only in the lowest layer, carried by the lowest ball alone, so its HG
+    closures sit in one volume object instead of several nested ones. The lowest layer's
+    coefficients, its Rayleigh/aerosol split and every other species are unchanged."""
+    plain = volumetric.volume_layers
+
+    def one_ball(plan, n_layers):
+        vol = plain(plan, n_layers)
+        cs = np.array(vol["closure_scattering"]["aerosol0"], dtype=float)
+        for part in vol["balls"] + vol["shells"]:
+            part["scatter"].pop("aerosol0", None)
+        vol["balls"][0]["scatter"]["aerosol0"] = [float(v) for v in cs[0]]
+        cs[1:] = 0.0
+        vol["closure_scattering"]["aerosol0"] = cs
+        vol["shells"] = [sh for sh in vol["shells"] if sh["scatter"]]
+        return vol
+
+    volumetric.volume_layers = one_ball
+
+
 def crossval(args):
-    """The test case, with its numbers (and optionally without the add-on's two fixes)."""
+    """The test case, with its numbers (and optionally without the add-on's two fixes, or
+    another case: --case-aerosol / --case-layers / --case-samples / --hg-lowest-ball)."""
     T = _crossval_module()
     from blender_addon import volumetric
 
+    # other cases than the test's (diagnostics of the open tropospheric-aerosol difference)
+    if args.case_aerosol is not None:
+        T.CASE = dict(T.CASE, aerosol=args.case_aerosol)
+    if args.case_layers is not None:
+        T.CASE = dict(T.CASE, layers=args.case_layers)
+    if args.case_samples is not None:
+        T.SAMPLES = args.case_samples
+    if args.hg_lowest_ball:
+        _hg_in_lowest_ball(volumetric)
     if args.without_fixes:
         plain_sphere = volumetric.sphere_arrays
         volumetric.sphere_arrays = lambda *a, **k: plain_sphere(*a, **dict(k, apex_off_axis=False))
         volumetric.closure_split = lambda species, u: [np.maximum(np.asarray(c, float), 0.0) for c in species]
     t0 = time.perf_counter()
-    gen = T.cycles_images.__wrapped__()
+    gen = T.cycles_images.__wrapped__(T.CASE)
     c1, c2 = next(gen)
     t_cycles = time.perf_counter() - t0
     t0 = time.perf_counter()
-    model = T.marcher_image.__wrapped__()
+    model = T.marcher_image.__wrapped__(T.CASE)
     t_marcher = time.perf_counter() - t0
     masks = T.regions(T.HEIGHT, T.WIDTH)
-    out = {"machine": machine(), "case": T.CASE, "without_fixes": bool(args.without_fixes),
-           "cycles_s": round(t_cycles, 1), "marcher_s": round(t_marcher, 1),
-           "regions": _region_table(c1, c2, model, masks)}
+    out = {"machine": machine(), "case": T.CASE, "samples": T.SAMPLES, "without_fixes": bool(args.without_fixes),
+           "hg_lowest_ball": bool(args.hg_lowest_ball), "cycles_s": round(t_cycles, 1),
+           "marcher_s": round(t_marcher, 1), "regions": _region_table(c1, c2, model, masks)}
+    if args.no_converged:
+        for _ in gen:
+            pass
+        print(json.dumps(out, indent=1), flush=True)
+        return out
     # the marcher's own error: the test's settings vs a converged march (same directions)
     from skymodel.render import marcher as marcher_module
 
@@ -250,7 +297,7 @@ def crossval(args):
     marcher_module.MarchSettings = lambda **k: fine_settings(**k, sun_table_altitudes=256, sun_table_x=384,
                                                               sun_table_steps=640)
     try:
-        fine = T.marcher_image.__wrapped__()
+        fine = T.marcher_image.__wrapped__(T.CASE)
     finally:
         marcher_module.MarchSettings = fine_settings
     out["marcher_test_settings_vs_converged_pct"] = {
@@ -263,34 +310,171 @@ def crossval(args):
     return out
 
 
-def _env_build_times(qualities):
-    """Build Sky (environment mode) at each quality, cold cache, through the headless module."""
+def _vm_kib(field):
+    """``field`` (e.g. VmHWM, the peak resident set) of this process from /proc/self/status, KiB."""
+    with open("/proc/self/status") as f:
+        return next(int(ln.split()[1]) for ln in f if ln.startswith(field + ":"))
+
+
+def _load_average():
+    with open("/proc/loadavg") as f:
+        return [float(v) for v in f.read().split()[:3]]
+
+
+def _env_build_row(q):
+    """One Build Sky (environment mode) at quality ``q``, cold cache, in this (fresh) process:
+    time, peak resident memory (VmHWM: before the build, i.e. Python + numpy + bpy + the
+    add-on, and after it) and the image's sanity (finite; zenith bluer than the horizon)."""
+    os.environ["SKYMODEL_CACHE_DIR"] = cache = tempfile.mkdtemp(prefix="skymodel-bench-cache-")
+    import bpy
+
+    from blender_addon import physics
+    from blender_addon import render as headless
     from blender_addon.core import input_error_class
+
+    headless._ensure_registered()
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    headless._ensure_registered()
+    o = headless.parse_args(["--location", "rural", "--month", "6", "--sun-elevation", "30", "--mode",
+                             "environment", "--quality", q, "--out", os.path.join(tempfile.mkdtemp(), "x.png")])
+    w = physics.IMAGE_WIDTH[q]
+    row = {"quality": q, "image": f"{w}x{w // 2}", "wavelength_step_nm": physics.WAVELENGTH_STEP_NM[q],
+           "load_before": _load_average(), "baseline_peak_MiB": round(_vm_kib("VmHWM") / 1024, 1)}
+    t0 = time.perf_counter()
+    try:
+        headless.build_scene(o, progress=None)
+        row["build_s"] = round(time.perf_counter() - t0, 1)
+    except input_error_class() as ex:  # e.g. the core's memory guard
+        row["refused"] = str(ex)
+    row["peak_MiB"] = round(_vm_kib("VmHWM") / 1024, 1)
+    row["load_after"] = _load_average()
+    if "build_s" in row:
+        exr = next(Path(cache).glob("sky-*.exr"))
+        img = bpy.data.images.load(str(exr), check_existing=False)
+        iw, ih = img.size
+        px = np.empty(iw * ih * 4, np.float32)
+        img.pixels.foreach_get(px)
+        rgb = px.reshape(ih, iw, 4)[::-1, :, :3].astype(float)  # row 0 at the top (zenith)
+        zen, hor = rgb[0].mean(axis=0), rgb[ih // 2 - 1].mean(axis=0)
+        row["check"] = {"finite": bool(np.isfinite(rgb).all()), "min": float(rgb.min()),
+                        "zenith_rgb": [round(float(v), 4) for v in zen],
+                        "horizon_rgb": [round(float(v), 4) for v in hor],
+                        "zenith_blue_share": round(float(zen[2] / zen.sum()), 4),
+                        "horizon_blue_share": round(float(hor[2] / hor.sum()), 4)}
+        row["check"]["sane"] = bool(row["check"]["finite"] and row["check"]["min"] >= 0.0
+                                    and row["check"]["zenith_blue_share"] > row["check"]["horizon_blue_share"])
+    return row
+
+
+def _env_build_times(qualities):
+    """Build Sky (environment mode) at each quality, cold cache, each in a fresh Python process
+    (so that the peak memory is that build's: ru_maxrss / VmHWM would carry the parent's)."""
+    import subprocess
 
     rows = []
     for q in qualities:
-        os.environ["SKYMODEL_CACHE_DIR"] = tempfile.mkdtemp(prefix="skymodel-bench-cache-")
-        import bpy
-
-        from blender_addon import physics
-        from blender_addon import render as headless
-
-        headless._ensure_registered()
-        bpy.ops.wm.read_factory_settings(use_empty=True)
-        headless._ensure_registered()
-        o = headless.parse_args(["--location", "rural", "--month", "6", "--sun-elevation", "30", "--mode",
-                                 "environment", "--quality", q, "--out", os.path.join(tempfile.mkdtemp(), "x.png")])
-        w = physics.IMAGE_WIDTH[q]
-        row = {"quality": q, "image": f"{w}x{w // 2}", "wavelength_step_nm": physics.WAVELENGTH_STEP_NM[q]}
-        t0 = time.perf_counter()
-        try:
-            headless.build_scene(o, progress=None)
-            row["build_s"] = round(time.perf_counter() - t0, 1)
-        except input_error_class() as ex:  # e.g. the core's memory guard
-            row["refused"] = str(ex)
+        proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), "env-row", "--quality", q],
+                              capture_output=True, text=True)
+        lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("{")]
+        if proc.returncode != 0 or not lines:
+            raise RuntimeError(f"environment build at quality {q} failed:\n{proc.stdout[-2000:]}{proc.stderr[-4000:]}")
+        row = json.loads(lines[-1])
         rows.append(row)
         print(json.dumps(row), flush=True)
     return rows
+
+
+def _env_markdown(rows, command, standalone=False, banded=None) -> str:
+    """The environment build table (a block of the "## Blender" section)."""
+    from common import git_revision
+
+    loads = [v for r in rows for v in (r["load_before"][0], r["load_after"][0])]
+    base = sorted({round(r["baseline_peak_MiB"]) for r in rows})
+    span = lambda lo, hi, f: f"{lo:{f}}" if f"{lo:{f}}" == f"{hi:{f}}" else f"{lo:{f}}–{hi:{f}}"  # noqa: E731
+    head = ("**Build Sky, environment mode** (rural, June, sun 30°; cold cache: the core's render of the "
+            "equirectangular image (our sky is marched band by band straight to RGB, 3 values per pixel) and "
+            "the EXR; through `blender_addon.render.build_scene`; each quality in a fresh Python process: the "
+            "peak resident memory is that process's VmHWM, of which Python + numpy + bpy + the add-on before "
+            f"the build is {span(base[0], base[-1], '.0f')} MiB; 1-min load average "
+            f"{span(min(loads), max(loads), '.1f')} before and after the builds")
+    if standalone:
+        import datetime as dt
+
+        head += (f"; {machine()}; revision {git_revision()}; {dt.date.today().isoformat()}; `nice -n 10`). "
+                 f"Command:\n\n    {command}\n\nThe image check: finite, ≥ 0, and the zenith row's blue share "
+                 f"B/(R+G+B) above the horizon row's:")
+    else:
+        head += "):"
+    lines = [head, "", "| quality | image | wavelength step | build time | peak memory | zenith / horizon blue share |",
+             "|---|---|---|---|---|---|"]
+    for r in rows:
+        took = f"{r['build_s']:.1f} s" if "build_s" in r else f"refused: {r['refused']}"
+        c = r.get("check")
+        chk = (f"{c['zenith_blue_share']:.3f} / {c['horizon_blue_share']:.3f}" + ("" if c["sane"] else " (FAILED)")
+               if c else "—")
+        lines.append(f"| {r['quality']} | {r['image']} | {r['wavelength_step_nm']:g} nm | {took} | "
+                     f"{r['peak_MiB'] / 1024:.2f} GiB | {chk} |")
+    if banded:
+        lines += ["", f"The banded environment equals the unbanded one: at {banded['width']}×{banded['width'] // 2} "
+                  f"({banded['quality']}, {banded['bands']} bands) `physics.render_environment` differs from the RGB of the full spectral "
+                  f"`render_sky` image by at most " + (f"{banded['max_rel_diff']:.1e} (relative; the EXR is float32)."
+                                                 if banded["max_rel_diff"] else "0 (identical pixels).")]
+    return "\n".join(lines)
+
+
+def _replace_env_block(path, body):
+    """Replace the environment table of the "## Blender" section of ``path`` (from its bold
+    heading to the next bold heading), leaving the rest of the file as it is."""
+    text = open(path, encoding="utf-8").read()
+    sec = text.index("\n## Blender")
+    start = text.index("**Build Sky, environment mode**", sec)
+    end = text.index("\n**", start + 2)
+    nxt = text.find("\n## ", sec + 1)
+    if nxt != -1 and end > nxt:
+        end = nxt
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(text[:start] + body.rstrip() + "\n" + text[end:])
+
+
+def _env_banded_check(width=512, quality="preview"):
+    """The add-on's banded environment (``physics.render_environment``: band by band straight to
+    RGB, 65536 pixels a band: 2 bands at 512x256) against reducing the full spectral cube of
+    ``render_sky`` for the same plan, camera and wavelengths (the unbanded path); no bpy."""
+    from blender_addon import physics
+    from skymodel.render.cameras import make_camera
+    from skymodel.render.sky import render_sky
+    from skymodel.wavelengths import default_wavelengths
+
+    plan = physics.resolve(physics.SkyParams(location="rural", month=6, sun_elevation_deg=30.0,
+                                             sun_azimuth_deg=180.0, mode="ENVIRONMENT", quality=quality,
+                                             image_width=width))
+    t0 = time.perf_counter()
+    banded, _ = physics.render_environment(plan, tempfile.mkdtemp(prefix="skymodel-bench-cache-"))
+    wl = default_wavelengths(physics.WAVELENGTH_STEP_NM[quality])
+    cam = make_camera("equirectangular", width, center_azimuth_deg=90.0)
+    full = render_sky(plan.profile(wl), cam, plan.sun_elevation_deg, plan.sun_azimuth_deg,
+                      plan.params.observer_altitude_m, quality, include_sun=False)
+    ref = physics.fit_into_gamut(physics.spectrum_rgb(full.radiance, wl)).astype(np.float32)
+    rel = np.abs(banded.astype(float) - ref) / np.maximum(np.abs(ref), 1e-30)
+    row = {"width": width, "quality": quality, "bands": -(-width * (width // 2) // 65536),
+           "max_rel_diff": float(rel.max()),
+           "equal_to_float32": bool(np.allclose(banded, ref, rtol=1e-6, atol=0.0)),
+           "seconds": round(time.perf_counter() - t0, 1)}
+    print(json.dumps({"banded_vs_unbanded": row}), flush=True)
+    return row
+
+
+def environment(args):
+    """Only the environment build at each quality; ``--write`` replaces its table in docs/benchmarks.md."""
+    from common import command_line
+
+    res = {"machine": machine(), "command": command_line(), "environment": _env_build_times(args.qualities),
+           "banded_vs_unbanded": _env_banded_check()}
+    if args.write:
+        _replace_env_block(str(ROOT / "docs" / "benchmarks.md"),
+                           _env_markdown(res["environment"], res["command"], standalone=True,
+                                         banded=res["banded_vs_unbanded"]))
+    return res
 
 
 def _volumetric_sweep(samples_list, width):
@@ -470,12 +654,7 @@ def _issue_markdown(res) -> str:
     lines = [f"Machine: {res['machine']}; revision {git_revision()}; {res['date']}. Wall-clock seconds on a 2-core "
              f"machine shared with other jobs (`nice -n 10`): treat them as upper bounds.", "",
              "Command:", "", f"    {res['command']}", "",
-             "**Build Sky, environment mode** (rural, June, sun 30°; cold cache: the core's spectral render "
-             "of the equirectangular image and the EXR; through `blender_addon.render.build_scene`):", "",
-             "| quality | image | wavelength step | build time |", "|---|---|---|---|"]
-    for r in res["environment"]:
-        took = f"{r['build_s']:.1f} s" if "build_s" in r else f"refused: {r['refused']}"
-        lines.append(f"| {r['quality']} | {r['image']} | {r['wavelength_step_nm']:g} nm | {took} |")
+             _env_markdown(res["environment"], res["command"])]
     v = res["volumetric"]
     lines += ["", f"**Volumetric Cycles render, 256×128** (the cross-validation medium of "
               f"`tests/test_addon_crossval.py`: rural, June, sun 30°, no tropospheric aerosol, 2 layers, "
@@ -537,7 +716,7 @@ def issue(args):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("what", choices=["projection", "cycles", "timings", "crossval", "issue"])
+    ap.add_argument("what", choices=["projection", "cycles", "timings", "crossval", "issue", "environment", "env-row"])
     ap.add_argument("--location", default="desert")
     ap.add_argument("--month", type=int, default=1)
     ap.add_argument("--elevations", type=lambda t: [float(v) for v in t.split(",")], default=[60.0, 20.0, 5.0, 1.0])
@@ -548,14 +727,24 @@ def main(argv=None):
     ap.add_argument("--quality", default="final")
     ap.add_argument("--json", default=None, help="write the results here")
     ap.add_argument("--without-fixes", action="store_true", help="crossval: switch the add-on's two fixes off")
+    ap.add_argument("--case-aerosol", default=None, help="crossval: tropospheric aerosol instead of the test's 'none'")
+    ap.add_argument("--case-layers", type=int, default=None, help="crossval: layers instead of the test's 2")
+    ap.add_argument("--case-samples", type=int, default=None, help="crossval: samples per seed instead of 16")
+    ap.add_argument("--hg-lowest-ball", action="store_true",
+                    help="crossval: the tropospheric aerosol only in the lowest layer, in one ball (diagnostic)")
+    ap.add_argument("--no-converged", action="store_true", help="crossval: skip the converged (4096-node) march")
     ap.add_argument("--qualities", type=lambda t: t.split(","), default=["preview", "final", "reference"])
     ap.add_argument("--sweep-samples", type=lambda t: [int(v) for v in t.split(",")], default=[16, 64, 256])
     ap.add_argument("--distances", type=lambda t: [float(v) for v in t.split(",")], default=[1.0, 10.0, 50.0])
     ap.add_argument("--aerial-samples", type=int, default=64)
-    ap.add_argument("--write", action="store_true", help="issue: update docs/benchmarks.md (section Blender)")
+    ap.add_argument("--write", action="store_true", help="issue, environment: update docs/benchmarks.md "
+                    "(section Blender; environment: only its environment table)")
     args = ap.parse_args(argv)
+    if args.what == "env-row":  # internal: one environment build in this fresh process, one JSON line
+        print(json.dumps(_env_build_row(args.quality)), flush=True)
+        return 0
     res = {"projection": projection, "cycles": cycles, "timings": timings, "crossval": crossval,
-           "issue": issue}[args.what](args)
+           "issue": issue, "environment": environment}[args.what](args)
     if args.json:
         Path(args.json).write_text(json.dumps(res, indent=1))
     return 0

@@ -31,9 +31,15 @@ the spheres' top fans; sun side: Cycles mixes phase closures with channel-indepe
 this case failed: zenith region -5 %, sun side R -4.3 % / B +1.4 %
 (``benchmarks/bench_blender.py crossval --without-fixes``; docs/blender.md).
 
+Two cases (``CASES``): without tropospheric aerosol, and with the rural tropospheric aerosol
+(two absorbing HG lobes; Cycles / marcher - 1 = +0.25, +0.22, +0.03 % at the zenith). With 2
+layers the aerosol's lobes sit in the lowest ball only. With more layers they sit in several
+nested balls and Cycles comes out 4-11 % dark (8 layers); that is an open problem of the
+add-on's geometry, not of this comparison (docs/blender.md, "Cycles against the marcher").
+
 Image: 64x32 equirectangular, 16 samples x 2 seeds; regions: zenith (elevation > 60
 degrees), horizon band (0-11.25 degrees, all azimuths), sun side (8-35 degrees from the sun,
-above the horizon). Runs in ~22 s on 2 shared cores.
+above the horizon). Runs in ~13 s on 2 shared cores (both cases; longer when they are busy).
 """
 
 import math
@@ -55,6 +61,10 @@ pytestmark = pytest.mark.blender
 #: stratospheric background aerosol stays: Rayleigh + an HG lobe in one medium), 2 layers
 CASE = {"location": "rural", "month": 6, "sun_elevation": 30.0, "sun_azimuth": 180.0, "aerosol": "none",
         "layers": 2}
+#: the cases checked: the one above, and the same with the rural tropospheric aerosol (two HG
+#: lobes, absorbing; at 2 layers its lobes sit in the lowest ball only, see docs/blender.md for
+#: what goes wrong in Cycles when they sit in several nested balls)
+CASES = {"no tropospheric aerosol": CASE, "rural aerosol": dict(CASE, aerosol="rural")}
 WIDTH, HEIGHT = 64, 32
 SAMPLES = 16
 SEEDS = (1, 2)
@@ -89,8 +99,13 @@ def regions(h, w):
             "sun side": (el > 0.0) & (to_sun > 8.0) & (to_sun < 35.0)}
 
 
+@pytest.fixture(scope="module", params=list(CASES))
+def case(request):
+    return CASES[request.param]
+
+
 @pytest.fixture(scope="module")
-def cycles_images():
+def cycles_images(case):
     import blender_addon
     from blender_addon import render as headless
 
@@ -100,9 +115,9 @@ def cycles_images():
         blender_addon.register()
     try:
         o = headless.parse_args([
-            "--location", CASE["location"], "--month", str(CASE["month"]),
-            "--sun-elevation", str(CASE["sun_elevation"]), "--sun-azimuth", str(CASE["sun_azimuth"]),
-            "--aerosol", CASE["aerosol"], "--albedo", "0", "--mode", "volumetric", "--layers", str(CASE["layers"]),
+            "--location", case["location"], "--month", str(case["month"]),
+            "--sun-elevation", str(case["sun_elevation"]), "--sun-azimuth", str(case["sun_azimuth"]),
+            "--aerosol", case["aerosol"], "--albedo", "0", "--mode", "volumetric", "--layers", str(case["layers"]),
             "--volume-bounces", "0", "--samples", str(SAMPLES), "--size", f"{WIDTH}x{HEIGHT}",
             "--camera-height", str(CAMERA_HEIGHT_M), "--center-azimuth", str(CENTER_AZIMUTH),
             "--out", os.path.join(tempfile.mkdtemp(), "unused.png")])
@@ -124,17 +139,17 @@ def cycles_images():
 
 
 @pytest.fixture(scope="module")
-def marcher_image():
+def marcher_image(case):
     """The marcher's mean radiance (R, G, B) over each pixel of the regions (NaN elsewhere)."""
     from blender_addon import physics, volumetric
     from skymodel.render.marcher import MarchSettings, SkyMarcher
 
-    plan = physics.resolve(physics.SkyParams(location=CASE["location"], month=CASE["month"],
-                                             sun_elevation_deg=CASE["sun_elevation"],
-                                             sun_azimuth_deg=CASE["sun_azimuth"], aerosol=CASE["aerosol"],
-                                             albedo=0.0, mode="VOLUMETRIC", n_layers=CASE["layers"]))
-    prof = volumetric.rgb_model_profile(volumetric.volume_layers(plan, CASE["layers"]))
-    marcher = SkyMarcher(prof, CASE["sun_elevation"], CASE["sun_azimuth"], CAMERA_HEIGHT_M,
+    plan = physics.resolve(physics.SkyParams(location=case["location"], month=case["month"],
+                                             sun_elevation_deg=case["sun_elevation"],
+                                             sun_azimuth_deg=case["sun_azimuth"], aerosol=case["aerosol"],
+                                             albedo=0.0, mode="VOLUMETRIC", n_layers=case["layers"]))
+    prof = volumetric.rgb_model_profile(volumetric.volume_layers(plan, case["layers"]))
+    marcher = SkyMarcher(prof, case["sun_elevation"], case["sun_azimuth"], CAMERA_HEIGHT_M,
                          MarchSettings(orders=1, exact=True, view_steps=VIEW_STEPS))
     need = np.any(np.stack(list(regions(HEIGHT, WIDTH).values())), axis=0)
     ii, jj = np.nonzero(need)
