@@ -1,7 +1,15 @@
 """Fixtures shared by the add-on test files (bpy, headless). ``bpy`` is imported only when
 a fixture runs, so the core's tests never need it."""
 
+import os
+import tempfile
+
 import pytest
+
+# before any test module imports bpy: keep Blender's user folders and the add-on's sky cache
+# out of $HOME (a test module may still set its own first)
+os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="skymodel-blender-user-"))
+os.environ.setdefault("SKYMODEL_CACHE_DIR", tempfile.mkdtemp(prefix="skymodel-cache-"))
 
 
 @pytest.fixture(scope="module")

@@ -3,13 +3,8 @@ plan it gives, the overrides, and Build Sky carrying the plan out (bpy, headless
 
 import json
 import math
-import os
-import tempfile
 
 import pytest
-
-os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="skymodel-blender-user-"))
-os.environ.setdefault("SKYMODEL_CACHE_DIR", tempfile.mkdtemp(prefix="skymodel-cache-"))
 
 bpy = pytest.importorskip("bpy")
 
