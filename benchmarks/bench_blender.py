@@ -71,6 +71,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from common import machine  # noqa: E402
 
 from blender_addon.volumetric import TO_RGB, rgb_model_profile  # noqa: E402
+from skymodel.accuracy import peak_memory_mb  # noqa: E402  (VmHWM of this process, MiB)
 
 
 def _plan(location, month, elevation, azimuth=180.0, n_layers=8, mode="VOLUMETRIC"):
@@ -310,17 +311,6 @@ def crossval(args):
     return out
 
 
-def _vm_kib(field):
-    """``field`` (e.g. VmHWM, the peak resident set) of this process from /proc/self/status, KiB."""
-    with open("/proc/self/status") as f:
-        return next(int(ln.split()[1]) for ln in f if ln.startswith(field + ":"))
-
-
-def _load_average():
-    with open("/proc/loadavg") as f:
-        return [float(v) for v in f.read().split()[:3]]
-
-
 def _env_build_row(q):
     """One Build Sky (environment mode) at quality ``q``, cold cache, in this (fresh) process:
     time, peak resident memory (VmHWM: before the build, i.e. Python + numpy + bpy + the
@@ -339,15 +329,15 @@ def _env_build_row(q):
                              "environment", "--quality", q, "--out", os.path.join(tempfile.mkdtemp(), "x.png")])
     w = physics.IMAGE_WIDTH[q]
     row = {"quality": q, "image": f"{w}x{w // 2}", "wavelength_step_nm": physics.WAVELENGTH_STEP_NM[q],
-           "load_before": _load_average(), "baseline_peak_MiB": round(_vm_kib("VmHWM") / 1024, 1)}
+           "load_before": [round(v, 2) for v in os.getloadavg()], "baseline_peak_MiB": round(peak_memory_mb(), 1)}
     t0 = time.perf_counter()
     try:
         headless.build_scene(o, progress=None)
         row["build_s"] = round(time.perf_counter() - t0, 1)
     except input_error_class() as ex:  # e.g. the core's memory guard
         row["refused"] = str(ex)
-    row["peak_MiB"] = round(_vm_kib("VmHWM") / 1024, 1)
-    row["load_after"] = _load_average()
+    row["peak_MiB"] = round(peak_memory_mb(), 1)
+    row["load_after"] = [round(v, 2) for v in os.getloadavg()]
     if "build_s" in row:
         exr = next(Path(cache).glob("sky-*.exr"))
         img = bpy.data.images.load(str(exr), check_existing=False)

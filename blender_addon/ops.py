@@ -175,11 +175,4 @@ class SKYMODEL_OT_remove_sky(bpy.types.Operator):
 CLASSES = (SKYMODEL_OT_build_sky, SKYMODEL_OT_remove_sky)
 
 
-def register():
-    for c in CLASSES:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(CLASSES):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

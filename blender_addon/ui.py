@@ -149,11 +149,4 @@ class VIEW3D_PT_skymodel(bpy.types.Panel):
 CLASSES = (WORLD_PT_skymodel, VIEW3D_PT_skymodel)
 
 
-def register():
-    for c in CLASSES:
-        bpy.utils.register_class(c)
-
-
-def unregister():
-    for c in reversed(CLASSES):
-        bpy.utils.unregister_class(c)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

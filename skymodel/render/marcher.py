@@ -168,8 +168,8 @@ class SkyMarcher:
         # delta-M scaled extinction at the solver wavelengths, medium 2 = the same on the full grid
         self.sun_table = SunTransmittance([self.medium.extinction, self.medium_ms.extinction_scaled,
                                            self.medium.extinction_scaled], self.R,
-                                          self.top, s.sun_table_altitudes, s.sun_table_x, s.sun_table_steps)
-        self.sun_table.earth_shadow = bool(s.earth_shadow)
+                                          self.top, s.sun_table_altitudes, s.sun_table_x, s.sun_table_steps,
+                                          earth_shadow=s.earth_shadow)
         self.timings = {"tables_s": time.perf_counter() - t_start}
         t1 = time.perf_counter()
         self.field: MultipleScatteringField = solve_multiple_scattering(

@@ -92,25 +92,19 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
                observer_altitude_m: float = 0.0, quality="final", include_sun: bool = True,
                progress=None) -> SkyImage:
     """Render ``camera``'s pixels for the atmosphere ``profile`` (smooth or layered)."""
-    settings = quality_settings(quality)
     t0 = time.perf_counter()
-    marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings, progress=progress)
+    marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, quality_settings(quality),
+                         progress=progress)
     dirs, valid = camera.directions()
-    h, w = valid.shape
-    n_wl = profile.wavelengths_nm.size
-    radiance = np.zeros((h, w, n_wl))
-    flat = dirs.reshape(-1, 3)
-    sel = np.nonzero(valid.ravel())[0]
-    res = marcher.radiance(flat[sel])
-    radiance.reshape(-1, n_wl)[sel] = res.radiance
-    sun_irr = res.sun_irradiance
+    radiance, res_info, _ = _march_pixels(marcher, dirs, valid, None, profile.wavelengths_nm.size, None)
+    sun_irr = marcher.direct_sun_irradiance()
     sun_mask = np.zeros(valid.shape, bool)
     if include_sun:
         from .. import sun as sun_module
 
         sun_mask = add_sun_disc(radiance, dirs, valid, camera.pixel_solid_angles(), marcher.sun, sun_irr,
                                 profile.wavelengths_nm, limb_darkening=getattr(sun_module, "limb_darkening", None))
-    info = dict(res.info)
+    info = res_info
     info["total_s"] = time.perf_counter() - t0
     info["sun_pixels"] = int(sun_mask.sum())
     info["quality"] = quality if isinstance(quality, str) else "custom"
@@ -128,23 +122,32 @@ def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce
 
     Returns ``(image (H, W, n_channels), sun_irradiance (n_wl,), info)``; invalid pixels are 0.
     """
-    settings = quality_settings(quality)
     t0 = time.perf_counter()
-    marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings, progress=progress)
+    marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, quality_settings(quality),
+                         progress=progress)
     dirs, valid = camera.directions()
+    out, info, bands = _march_pixels(marcher, dirs, valid, reduce, n_channels, band_pixels)
+    info["total_s"] = time.perf_counter() - t0
+    info["bands"] = bands
+    info["quality"] = quality if isinstance(quality, str) else "custom"
+    return out, marcher.direct_sun_irradiance(), info
+
+
+def _march_pixels(marcher, dirs, valid, reduce, n_channels: int, band_pixels):
+    """March the valid pixels of a camera: ``(image (H, W, n_channels), the marcher's info,
+    number of bands)``. ``reduce(radiance (n, n_wl), wavelengths_nm) -> (n, n_channels)`` is
+    applied to each band of at most ``band_pixels`` pixels (None: keep the spectra; all
+    pixels in one band); invalid pixels are 0."""
     h, w = valid.shape
     out = np.zeros((h * w, int(n_channels)))
     flat = dirs.reshape(-1, 3)
     sel = np.nonzero(valid.ravel())[0]
-    band = max(1, int(band_pixels))
-    sun_irr = marcher.direct_sun_irradiance()
-    info = {}
-    for start in range(0, sel.size, band):
+    band = sel.size if band_pixels is None else max(1, int(band_pixels))
+    info, bands = {}, 0
+    for start in range(0, sel.size, max(band, 1)):
         idx = sel[start:start + band]
         res = marcher.radiance(flat[idx])
-        out[idx] = np.asarray(reduce(res.radiance, profile.wavelengths_nm), dtype=float).reshape(idx.size, -1)
-        info = dict(res.info)
-    info["total_s"] = time.perf_counter() - t0
-    info["bands"] = int(np.ceil(sel.size / band)) if sel.size else 0
-    info["quality"] = quality if isinstance(quality, str) else "custom"
-    return out.reshape(h, w, int(n_channels)), sun_irr, info
+        part = res.radiance if reduce is None else reduce(res.radiance, res.wavelengths_nm)
+        out[idx] = np.asarray(part, dtype=float).reshape(idx.size, -1)
+        info, bands = dict(res.info), bands + 1
+    return out.reshape(h, w, int(n_channels)), info, bands

@@ -33,16 +33,15 @@ SUN_ANGULAR_RADIUS_RAD = np.arcsin(695_700.0 / 149_597_870.7)
 class SunTransmittance:
     """Optical depth to the top of the atmosphere for several low-rank media at once.
 
-    Setting the attribute ``earth_shadow`` to False (``MarchSettings.earth_shadow`` does;
-    an approximation, for measuring what the shadow does: the effect planner's table)
-    lets the planet block no sunlight: the whole disc counts as
+    ``earth_shadow=False`` (``MarchSettings.earth_shadow`` passes it; an approximation, for
+    measuring what the shadow does: the effect planner's table) lets the planet block no
+    sunlight: the whole disc counts as
     visible everywhere, and points under the local horizon get the optical depth of the
     grazing ray."""
 
-    earth_shadow: bool = True
-
     def __init__(self, media: list[LowRank], ground_radius: float, top_altitude: float,
-                 n_altitudes: int = 96, n_x: int = 192, n_steps: int = 256):
+                 n_altitudes: int = 96, n_x: int = 192, n_steps: int = 256, earth_shadow: bool = True):
+        self.earth_shadow = bool(earth_shadow)
         self.media = list(media)
         self.R = float(ground_radius)
         self.top = float(top_altitude)
