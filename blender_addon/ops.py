@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import time
 import traceback
@@ -12,10 +11,6 @@ import bpy
 
 from . import builder, physics
 from .core import input_error_class
-
-#: AUTO mode picks Volumetric when Cycles renders a scene at least this large (metres).
-AUTO_VOLUMETRIC_SIZE_M = 1000.0
-
 
 class Progress:
     """Progress of a build: the cursor progress in the UI (``wm.progress_*``, which does
@@ -57,34 +52,6 @@ def cache_dir() -> Path:
     return physics.default_cache_dir()
 
 
-def scene_extent_m(scene) -> float:
-    """Largest dimension (metres) of the scene's visible mesh objects other than ours."""
-    lo = [float("inf")] * 3
-    hi = [float("-inf")] * 3
-    scale = scene.unit_settings.scale_length or 1.0
-    for obj in scene.objects:
-        if obj.type != "MESH" or builder.is_ours(obj) or obj.hide_render:
-            continue
-        for corner in obj.bound_box:
-            w = obj.matrix_world @ __import__("mathutils").Vector(corner)
-            for k in range(3):
-                lo[k] = min(lo[k], w[k])
-                hi[k] = max(hi[k], w[k])
-    if lo[0] == float("inf"):
-        return 0.0
-    return max(h - l for h, l in zip(hi, lo)) * scale
-
-
-def decide_mode(mode: str, scene) -> str:
-    """AUTO: Volumetric when the scene renders with Cycles and its meshes span at least
-    ``AUTO_VOLUMETRIC_SIZE_M`` (aerial perspective on the scene matters); else Environment."""
-    if mode != "AUTO":
-        return mode
-    if scene.render.engine == "CYCLES" and scene_extent_m(scene) >= AUTO_VOLUMETRIC_SIZE_M:
-        return "VOLUMETRIC"
-    return "ENVIRONMENT"
-
-
 def build(context, settings=None, progress=None):
     """Build the sky of ``context.scene.world`` (used by the operator and by
     ``render.py``); raises on bad input or failure, leaving the scene untouched."""
@@ -101,8 +68,6 @@ def build(context, settings=None, progress=None):
         if progress:
             for line in scene_description.plan_lines(auto_plan):
                 progress(f"plan: {line}")
-    else:
-        params = dataclasses.replace(params, mode=decide_mode(params.mode, scene))
     if progress:
         progress(f"mode {params.mode.lower()}, quality {params.quality}")
     plan = physics.resolve(params)
