@@ -4,7 +4,7 @@
     python benchmarks/bench_blender.py cycles     [--size 128x64 --samples 256 --layers 8]
     python benchmarks/bench_blender.py timings
     python benchmarks/bench_blender.py crossval   [--without-fixes] [--case-aerosol rural --case-layers 8
-                                               --case-samples 64 --hg-lowest-ball --no-converged]
+                                               --case-samples 64 --no-converged]
     python benchmarks/bench_blender.py issue      [--write]   (~10 min on a loaded 2-core machine)
     python benchmarks/bench_blender.py environment [--write --qualities preview,final,reference]  (~8 min)
 
@@ -29,9 +29,8 @@ per region, the Monte Carlo noise, and the marcher's own error (test settings vs
 with finer sun tables); ``--without-fixes`` renders it with the add-on's two Cycles fixes switched
 off (volume apex on the axis, species' own coefficients in the closures) to show what they fix.
 The ``--case-*`` options render another case than the test's (tropospheric aerosol, layers,
-samples per seed), ``--hg-lowest-ball`` moves the tropospheric aerosol into the lowest ball alone
-(both sides), ``--no-converged`` skips the 4096-node march: the diagnostics of the open
-tropospheric-aerosol difference in docs/blender.md.
+samples per seed), ``--no-converged`` skips the 4096-node march (docs/blender.md, "Cycles against
+the marcher").
 
 ``environment`` (bpy): only that first item, plus the banded-vs-unbanded check of the add-on's
 environment at 512x256 (no bpy); ``--write`` replaces only its table in docs/benchmarks.md.
@@ -234,42 +233,19 @@ def _region_table(c1, c2, model, masks):
     return out
 
 
-def _hg_in_lowest_ball(volumetric):
-    """Diagnostic variant of the medium (both Cycles and the marcher): the tropospheric
-    aerosol (regime 0) only in the lowest layer, carried by the lowest ball alone, so its HG
-    closures sit in one volume object instead of several nested ones. The lowest layer's
-    coefficients, its Rayleigh/aerosol split and every other species are unchanged."""
-    plain = volumetric.volume_layers
-
-    def one_ball(plan, n_layers):
-        vol = plain(plan, n_layers)
-        cs = np.array(vol["closure_scattering"]["aerosol0"], dtype=float)
-        for part in vol["balls"] + vol["shells"]:
-            part["scatter"].pop("aerosol0", None)
-        vol["balls"][0]["scatter"]["aerosol0"] = [float(v) for v in cs[0]]
-        cs[1:] = 0.0
-        vol["closure_scattering"]["aerosol0"] = cs
-        vol["shells"] = [sh for sh in vol["shells"] if sh["scatter"]]
-        return vol
-
-    volumetric.volume_layers = one_ball
-
-
 def crossval(args):
     """The test case, with its numbers (and optionally without the add-on's two fixes, or
-    another case: --case-aerosol / --case-layers / --case-samples / --hg-lowest-ball)."""
+    another case: --case-aerosol / --case-layers / --case-samples)."""
     T = _crossval_module()
     from blender_addon import volumetric
 
-    # other cases than the test's (diagnostics of the open tropospheric-aerosol difference)
+    # other cases than the test's first
     if args.case_aerosol is not None:
         T.CASE = dict(T.CASE, aerosol=args.case_aerosol)
     if args.case_layers is not None:
         T.CASE = dict(T.CASE, layers=args.case_layers)
     if args.case_samples is not None:
         T.SAMPLES = args.case_samples
-    if args.hg_lowest_ball:
-        _hg_in_lowest_ball(volumetric)
     if args.without_fixes:
         plain_sphere = volumetric.sphere_arrays
         volumetric.sphere_arrays = lambda *a, **k: plain_sphere(*a, **dict(k, apex_off_axis=False))
@@ -283,7 +259,7 @@ def crossval(args):
     t_marcher = time.perf_counter() - t0
     masks = T.regions(T.HEIGHT, T.WIDTH)
     out = {"machine": machine(), "case": T.CASE, "samples": T.SAMPLES, "without_fixes": bool(args.without_fixes),
-           "hg_lowest_ball": bool(args.hg_lowest_ball), "cycles_s": round(t_cycles, 1),
+           "cycles_s": round(t_cycles, 1),
            "marcher_s": round(t_marcher, 1), "regions": _region_table(c1, c2, model, masks)}
     if args.no_converged:
         for _ in gen:
@@ -720,8 +696,6 @@ def main(argv=None):
     ap.add_argument("--case-aerosol", default=None, help="crossval: tropospheric aerosol instead of the test's 'none'")
     ap.add_argument("--case-layers", type=int, default=None, help="crossval: layers instead of the test's 2")
     ap.add_argument("--case-samples", type=int, default=None, help="crossval: samples per seed instead of 16")
-    ap.add_argument("--hg-lowest-ball", action="store_true",
-                    help="crossval: the tropospheric aerosol only in the lowest layer, in one ball (diagnostic)")
     ap.add_argument("--no-converged", action="store_true", help="crossval: skip the converged (4096-node) march")
     ap.add_argument("--qualities", type=lambda t: t.split(","), default=["preview", "final", "reference"])
     ap.add_argument("--sweep-samples", type=lambda t: [int(v) for v in t.split(",")], default=[16, 64, 256])

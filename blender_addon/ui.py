@@ -66,9 +66,6 @@ def draw_settings(layout, context):
     if s.mode != "ENVIRONMENT":
         if s.mode == "VOLUMETRIC":
             col.prop(s, "n_layers")
-            if s.n_layers > 2:
-                # measured, not understood yet: docs/blender.md, "Cycles against the marcher"
-                col.label(text="Known issue: with aerosol, >2 layers render 5-11% dark", icon="ERROR")
         col.prop(s, "volume_bounces")
     col.prop(s, "set_exposure")
     if s.mode == "AUTO":

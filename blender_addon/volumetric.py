@@ -1,4 +1,4 @@
-"""Volumetric mode: the atmosphere as nested Cycles volumes around the planet.
+"""Volumetric mode: the atmosphere as stacked, non-overlapping Cycles volumes around the planet.
 
 Geometry
     The planet (radius R = 6360 km, the core's) is centred at (0, 0, -R): the scene origin
@@ -6,18 +6,26 @@ Geometry
     (``OpticalProfile.layered``: edges with equal shares of the 550 nm optical depth,
     per-layer mean coefficients) becomes
 
-    * one closed **ball** per layer edge: ball i (radius R + edge[i+1]) carries the
-      *difference* between layer i and layer i+1 (the outermost the top layer's value),
-      because overlapping Cycles volumes add: inside ball i and every ball around it the
-      sum is layer i's value;
-    * a ball cannot carry a negative *scattering* difference (Cycles renders it wrong,
-      measured: +39 % radiance for a -50 % difference; negative *absorption* differences
-      are rendered exactly). So each scattering species is split into a part that does not
-      increase with height (running minimum from the ground: balls) and the non-negative
-      rest (the stratospheric aerosol layer), which goes into closed **shells**, one per
-      layer that needs it, their surfaces inset by ``SHELL_INSET_M`` from the layer edges
-      (coincident boundaries render wrong) and their coefficients scaled by
-      thickness / (thickness - 2 inset) to keep the optical depth;
+    * one Cycles volume object per layer, and **no two of them overlap**: the lowest layer is a
+      closed **ball** (radius R + its top edge; the camera is inside it), every layer above is a
+      closed **shell** (an outer sphere and an inward-facing inner sphere). Each holds its
+      layer's whole medium: every scattering species and the absorption. Their surfaces sit
+      ``SHELL_INSET_M`` (20 m) inside the layer's edges, because coincident boundaries render
+      wrong, and the coefficients are scaled by thickness / (thickness - insets) so each layer
+      keeps its vertical optical depth; the 40 m gaps at the edges hold nothing, and
+      :func:`rgb_model_profile` models them as empty layers, so the marcher's comparison medium
+      is exactly what Cycles holds.
+
+      Why not nested balls carrying coefficient differences (overlapping Cycles volumes add,
+      which was the first design): where several volumes overlap, Cycles merges their equal
+      phase closures (``volume_shader_merge_closures``), and with more than one kind of phase
+      closure per volume (Rayleigh + two aerosol HG lobes) the merged mixture came out wrong
+      (measured, 64x32 single scattering: with two HG lobes g = 0.6 and 0 in two nested balls,
+      +12 % on the sun side; the same lobes given g differing by 1e-3 between the balls, so
+      nothing merges, or put in non-overlapping shells: within 0.6 %). With the rural aerosol
+      and 8 layers the nested balls rendered 5-11 % dark. Non-overlapping volumes never merge,
+      hold at most 5 closures at a point (under Cycles' 8 phase closures) and need no
+      non-negative split of the coefficients.
     * the **ground**: a sphere of radius R with a diffuse BSDF of the ground albedo,
       lowered by ``GROUND_DROP_M`` (1 cm) so it does not z-fight a ground plane at z = 0.
 
@@ -29,8 +37,8 @@ Geometry
     ring, 5 km away). See :func:`sag_report`.
 
 Media (Volume Coefficients nodes, Blender >= 4.5)
-    Per ball/shell: molecules with the RAYLEIGH phase (scatter = Rayleigh coefficient
-    difference, absorption = ozone + aerosol absorption difference), and per aerosol
+    Per layer: molecules with the RAYLEIGH phase (scatter = the layer's Rayleigh coefficient,
+    absorption = its ozone + aerosol absorption), and per aerosol
     regime (troposphere, stratosphere) two Henyey-Greenstein lobes from the core's
     double-HG fit (:func:`skymodel.phase_fit.fit_phase`, first moment kept exactly) of
     the regime's phase table averaged over wavelength with the weights below.
@@ -70,16 +78,14 @@ WAVELENGTH_STEP_NM = 10.0
 SAG_ABS_M = 0.5
 SAG_REL = 1e-4
 SEGMENTS = 256
-#: Shell surfaces sit this far inside their layer's edges (never on a ball's boundary).
+#: Volume surfaces sit this far inside their layer's edges (at most a tenth of the layer), so
+#: no two surfaces coincide; 40x the float32 spacing of vertex coordinates at the planet radius.
 SHELL_INSET_M = 20.0
-#: A layer's non-monotone rest is dropped (no shell) when its optical depth is below this
-#: in every channel (the stratospheric aerosol's ~1e-11 m^-1 in the troposphere).
-SHELL_MIN_TAU = 1e-4
 #: The ground sphere is lowered by this much (no z-fighting with a plane at z = 0).
 GROUND_DROP_M = 0.01
-#: Cycles evaluates at most 64 closures at a point, summed over every volume that contains
-#: it (each ball around the camera + one shell); stay under this with some room.
-CLOSURE_BUDGET = 56
+#: Cycles evaluates at most 8 phase closures at a point (MAX_VOLUME_CLOSURE); one volume holds
+#: 1 (Rayleigh) + 2 lobes per aerosol regime.
+MAX_PHASE_CLOSURES = 8
 #: Volume spheres: the apex of the top triangle fan sits this fraction of the first ring's
 #: polar angle off the Z axis (see :func:`sphere_arrays`).
 APEX_OFFSET = 0.3
@@ -175,19 +181,6 @@ def project(coeff, weights) -> np.ndarray:
     return np.asarray(coeff, float) @ weights
 
 
-def split_monotone(c: np.ndarray):
-    """c (n_layer, 3) -> (balls part non-increasing with height, non-negative rest)."""
-    b = np.minimum.accumulate(np.maximum(c, 0.0), axis=0)
-    return b, np.maximum(c, 0.0) - b
-
-
-def differences(b: np.ndarray) -> np.ndarray:
-    """Per-ball values so that sum over balls j >= i equals b[i] (outermost = b[-1])."""
-    d = b.copy()
-    d[:-1] = b[:-1] - b[1:]
-    return d
-
-
 def closure_split(species, channel_weights) -> list:
     """Per-closure scatter coefficients that Cycles' phase mixing renders right in luminance.
 
@@ -235,9 +228,25 @@ def regime_phase_fits(profile, weights, column_scattering_by_regime):
     return fits
 
 
+def layer_volumes(edges_m) -> list:
+    """Surfaces of the per-layer volumes (metres above the ground): for each layer
+    ``(bottom_m, top_m, scale)``, ``bottom_m`` None for the lowest (a ball), the surfaces inset by
+    ``SHELL_INSET_M`` (at most a tenth of the layer) and ``scale`` = thickness / inset thickness,
+    which keeps the layer's vertical optical depth."""
+    e = np.asarray(edges_m, float)
+    out = []
+    for i in range(e.size - 1):
+        lo, hi = float(e[i]), float(e[i + 1])
+        inset = min(SHELL_INSET_M, 0.1 * (hi - lo))
+        bottom = None if i == 0 else lo + inset
+        top = hi - inset
+        out.append((bottom, top, (hi - lo) / (top - (lo if bottom is None else bottom))))
+    return out
+
+
 def volume_layers(plan, n_layers: int):
-    """The balls and shells (plain dicts, radii in metres above the ground) and the
-    spectral pieces the projection used."""
+    """One volume per layer (plain dicts, radii in metres above the ground; see the module doc)
+    and the spectral pieces the projection used."""
     wl = core("wavelengths").default_wavelengths(WAVELENGTH_STEP_NM)
     prof = plan.profile(wl)
     lay = prof.layered(n_layers=int(n_layers))
@@ -252,57 +261,35 @@ def volume_layers(plan, n_layers: int):
     fits = regime_phase_fits(prof, weights, column)
     sun_rgb = spectrum_rgb(prof.solar_irradiance, wl)
     mixed = closure_split([ray] + aer, LUMA_709 * sun_rgb)
-    species = [("rayleigh", mixed[0], None)] + [(f"aerosol{r}", mixed[1 + r], fits[r]) for r in range(len(aer))]
-    balls = [{"top_m": float(edges[i + 1]), "absorption": None, "scatter": {}} for i in range(lay.n_layers)]
-    shells = {}
-    dropped_tau = np.zeros(3)
-    d_abs = differences(absn)
-    for i in range(lay.n_layers):
-        balls[i]["absorption"] = [float(v) for v in d_abs[i]]
-    for name, c, _fit in species:
-        b, rest = split_monotone(c)
-        d = differences(b)
-        for i in range(lay.n_layers):
-            if np.any(d[i] > 0):
-                balls[i]["scatter"][name] = [float(v) for v in d[i]]
-            lo, hi = float(edges[i]), float(edges[i + 1])
-            if np.all(rest[i] * (hi - lo) < SHELL_MIN_TAU):
-                dropped_tau += rest[i] * (hi - lo)
-            else:
-                inset = min(SHELL_INSET_M, 0.1 * (hi - lo))
-                scale = (hi - lo) / (hi - lo - 2 * inset)
-                sh = shells.setdefault(i, {"bottom_m": lo + inset, "top_m": hi - inset, "scatter": {}})
-                sh["scatter"][name] = [float(v * scale) for v in rest[i]]
+    species = [("rayleigh", mixed[0])] + [(f"aerosol{r}", mixed[1 + r]) for r in range(len(aer))]
     phases = {"rayleigh": {"phase": "RAYLEIGH"}}
     for r, f in enumerate(fits):
-        phases[f"aerosol{r}"] = f
-    # closures at a point: per ball 1 (molecules) + lobes per aerosol regime present; + a shell
-    def count(lobes):
-        def n(sc):
-            return 1 + sum(lobes for k in sc if k.startswith("aerosol") and phases.get(k))
-        return sum(n(b["scatter"]) for b in balls) + max([n(v["scatter"]) for v in shells.values()] or [0])
-    lobes = 2 if count(2) <= CLOSURE_BUDGET else 1
-    if count(lobes) > CLOSURE_BUDGET:
+        phases[f"aerosol{r}"] = None if f is None else dict(f, lobes=2)
+    volumes = []
+    for i, (bottom, top, scale) in enumerate(layer_volumes(edges)):
+        scatter = {name: [float(v * scale) for v in c[i]] for name, c in species
+                   if np.any(c[i] > 0) and (name == "rayleigh" or phases[name])}
+        volumes.append({"layer": i, "bottom_m": bottom, "top_m": top, "scale": scale,
+                        "absorption": [float(v * scale) for v in absn[i]], "scatter": scatter})
+
+    def closures(v):
+        return sum(1 if k == "rayleigh" else phases[k]["lobes"] for k in v["scatter"])
+
+    most = max(closures(v) for v in volumes)
+    if most > MAX_PHASE_CLOSURES:  # cannot happen with two regimes; kept as the contract
         raise core("errors").SkymodelInputError(
-            "n_layers", n_layers, f"fewer layers: {count(1)} volume closures would overlap at the camera, "
-                                  f"Cycles evaluates at most 64 (keep under {CLOSURE_BUDGET})")
-    for r, f in enumerate(fits):
-        if f is not None and lobes == 1:
-            phases[f"aerosol{r}"] = dict(f, w=1.0, g1=f["g"], g2=f["g"], lobes=1)
-        elif f is not None:
-            phases[f"aerosol{r}"] = dict(f, lobes=2)
+            "n_layers", n_layers, f"{most} phase closures in one volume; Cycles evaluates at most {MAX_PHASE_CLOSURES}")
     albedo = spectrum_rgb(prof.ground_albedo * prof.solar_irradiance, wl) / np.maximum(
         spectrum_rgb(prof.solar_irradiance, wl), 1e-30)
     return {
         "edges_m": [float(e) for e in edges],
-        "balls": balls,
-        "shells": [shells[k] for k in sorted(shells)],
+        "volumes": volumes,
         "phases": phases,
         "ground_albedo_rgb": [float(np.clip(a, 0.0, 1.0)) for a in albedo],
-        "closures_at_camera": count(lobes),
-        # per-layer scatter coefficient of each closure species (R, G, B), after closure_split
-        "closure_scattering": {name: c for name, c, _fit in species},
-        "dropped_optical_depth_rgb": [float(v) for v in dropped_tau],
+        "closures_per_volume": most,
+        # per-layer scatter coefficient of each closure species (R, G, B), after closure_split,
+        # before the inset scaling
+        "closure_scattering": {name: c for name, c in species},
         "weights": weights,
         "profile": prof,
         "layered": lay,
@@ -316,24 +303,38 @@ TO_RGB = [2, 1, 0]
 
 def rgb_model_profile(vol):
     """The medium the Cycles volumes hold, as a core ``LayeredProfile`` on three pseudo-wavelengths
-    (``PSEUDO_WL``, standing for B, G, R: reorder a result with ``[..., TO_RGB]``): the projected
-    RGB coefficients of every layer, with scattering split between the species as the closures
-    carry it (:func:`closure_split`), Rayleigh without depolarisation (Cycles' RAYLEIGH phase),
-    the fitted aerosol lobes and the RGB extraterrestrial sun. The core's marcher renders it for a
-    like-for-like comparison with Cycles (``tests/test_addon.py``, ``benchmarks/bench_blender.py``)."""
+    (``PSEUDO_WL``, standing for B, G, R: reorder a result with ``[..., TO_RGB]``): every volume's
+    projected RGB coefficients as its material carries them (scattering split between the species
+    by :func:`closure_split`, inset-scaled, absorption clipped at 0), the empty gaps between the
+    volumes as layers of their own, Rayleigh without depolarisation (Cycles' RAYLEIGH phase), the
+    fitted aerosol lobes and the RGB extraterrestrial sun. The core's marcher renders it for a
+    like-for-like comparison with Cycles (``tests/test_addon_crossval.py``, ``benchmarks/bench_blender.py``)."""
     hg = core("phase_fit").hg
     LayeredProfile = core("profile").LayeredProfile
 
-    lay, w, prof = vol["layered"], vol["weights"], vol["profile"]
-    cs = vol["closure_scattering"]
-
-    def P(a):
-        return project(a, w)[..., TO_RGB]
+    lay, prof = vol["layered"], vol["profile"]
+    n_regime = lay.aerosol_scattering_by_regime.shape[0]
+    names = ["rayleigh"] + [f"aerosol{r}" for r in range(n_regime)]
+    edges = [0.0]
+    coeff = {k: [] for k in names + ["absorption"]}
+    for v in vol["volumes"]:
+        if v["bottom_m"] is not None:  # the gap below this volume: empty
+            edges.append(v["bottom_m"])
+            for k in coeff:
+                coeff[k].append(np.zeros(3))
+        edges.append(v["top_m"])
+        for k in names:
+            coeff[k].append(np.asarray(v["scatter"].get(k, (0.0, 0.0, 0.0)), float))
+        coeff["absorption"].append(np.asarray(v["absorption"], float))
+    edges.append(float(lay.top_altitude_m))  # the gap under the top of the atmosphere
+    for k in coeff:
+        coeff[k].append(np.zeros(3))
+    c = {k: np.stack(val)[:, TO_RGB] for k, val in coeff.items()}
 
     angles = prof.aerosol_phase_angles_deg
     mu = np.cos(np.radians(angles))
     tables = []
-    for r in range(prof.aerosol_phase.shape[0]):
+    for r in range(n_regime):
         f = vol["phases"].get(f"aerosol{r}")
         if f is None:
             t = np.full(angles.shape, 1 / (4 * np.pi))
@@ -345,10 +346,9 @@ def rgb_model_profile(vol):
         wavelengths_nm=PSEUDO_WL, rayleigh_depolarization=np.zeros(3), aerosol_phase_angles_deg=angles,
         aerosol_phase=np.stack(tables), ground_albedo=np.asarray(vol["ground_albedo_rgb"])[TO_RGB],
         solar_irradiance=sun_rgb[TO_RGB], planet_radius_m=prof.planet_radius_m, top_altitude_m=lay.top_altitude_m,
-        edges_m=lay.edges_m, rayleigh_scattering=cs["rayleigh"][..., TO_RGB], ozone_absorption=P(lay.ozone_absorption),
-        aerosol_scattering_by_regime=np.stack([cs[f"aerosol{r}"][..., TO_RGB]
-                                               for r in range(lay.aerosol_scattering_by_regime.shape[0])]),
-        aerosol_absorption=P(lay.aerosol_absorption))
+        edges_m=np.asarray(edges), rayleigh_scattering=c["rayleigh"], ozone_absorption=c["absorption"],
+        aerosol_scattering_by_regime=np.stack([c[f"aerosol{r}"] for r in range(n_regime)]),
+        aerosol_absorption=np.zeros_like(c["absorption"]))
 
 
 def compute(plan, cache_dir=None, progress=None) -> SkyResult:
@@ -380,7 +380,7 @@ def compute(plan, cache_dir=None, progress=None) -> SkyResult:
     res.ground_albedo_rgb = tuple(vol["ground_albedo_rgb"])
     h = rgb.shape[0]
     luma = rgb @ np.array([0.2126, 0.7152, 0.0722])
-    res.info = {"compute_s": time.perf_counter() - t0, "balls": len(vol["balls"]), "shells": len(vol["shells"]),
+    res.info = {"compute_s": time.perf_counter() - t0, "volumes": len(vol["volumes"]),
                 "zenith_Y_core": float(luma[0].mean()), "horizon_Y_core": float(luma[h // 2 - 1].mean()),
                 "sun_observer_Y": s_obs, "horizontal_illuminance_Y": e_h, "phases": vol["phases"],
                 "sag": sag_report(prof.planet_radius_m)}
@@ -482,7 +482,7 @@ def _object(tx, coll, name, mesh, material):
 
 
 def apply(scene, world, settings, result, progress=None):
-    """Volumetric mode scene: black world, sun lamp, balls, shells, ground, Cycles settings."""
+    """Volumetric mode scene: black world, sun lamp, one volume per layer, ground, Cycles settings."""
     from . import builder
 
     vol = result.layers
@@ -491,25 +491,25 @@ def apply(scene, world, settings, result, progress=None):
     tx = builder.Transaction()
     try:
         if progress:
-            progress(f"meshes: {len(vol['balls'])} balls, {len(vol['shells'])} shells, ground "
-                     f"({(thetas.size - 1) * SEGMENTS} faces each)")
+            progress(f"meshes: {len(vol['volumes'])} layer volumes, ground "
+                     f"({(thetas.size - 1) * SEGMENTS} faces a sphere)")
         coll = builder._ensure_collection(tx, scene)
         sun = builder._new_sun(tx, result)
         tx.link_object(coll, sun)
-        for i, ball in enumerate(vol["balls"]):
-            name = f"Skymodel Atmosphere {i:02d}"
-            me = _mesh_from_arrays(tx, name, *sphere_arrays(R + ball["top_m"], -R, thetas, apex_off_axis=True))
-            mat = _volume_material(tx, name, ball["absorption"], ball["scatter"], vol["phases"])
-            obj = _object(tx, coll, name, me, mat)
-            obj["skymodel_top_m"] = ball["top_m"]
-        for i, sh in enumerate(vol["shells"]):
-            name = f"Skymodel Shell {i:02d}"
-            arrays = _join_arrays(sphere_arrays(R + sh["top_m"], -R, thetas, apex_off_axis=True),
-                                  sphere_arrays(R + sh["bottom_m"], -R, thetas, inward=True, apex_off_axis=True))
+        for v in vol["volumes"]:
+            name = f"Skymodel Atmosphere {v['layer']:02d}"
+            outer = sphere_arrays(R + v["top_m"], -R, thetas, apex_off_axis=True)
+            if v["bottom_m"] is None:
+                arrays = outer
+            else:
+                arrays = _join_arrays(outer, sphere_arrays(R + v["bottom_m"], -R, thetas, inward=True,
+                                                           apex_off_axis=True))
             me = _mesh_from_arrays(tx, name, *arrays)
-            mat = _volume_material(tx, name, None, sh["scatter"], vol["phases"])
+            mat = _volume_material(tx, name, v["absorption"], v["scatter"], vol["phases"])
             obj = _object(tx, coll, name, me, mat)
-            obj["skymodel_bottom_m"], obj["skymodel_top_m"] = sh["bottom_m"], sh["top_m"]
+            obj["skymodel_top_m"] = v["top_m"]
+            if v["bottom_m"] is not None:
+                obj["skymodel_bottom_m"] = v["bottom_m"]
         me = _mesh_from_arrays(tx, "Skymodel Ground", *sphere_arrays(R, -R - GROUND_DROP_M, thetas))
         _object(tx, coll, "Skymodel Ground", me, _ground_material(tx, result.ground_albedo_rgb))
         builder._black_world_nodes(tx, world)
@@ -518,7 +518,7 @@ def apply(scene, world, settings, result, progress=None):
         nb = int(settings.volume_bounces)
         tx.set(cyc, "volume_bounces", nb)
         tx.set(cyc, "max_bounces", max(int(cyc.max_bounces), nb + 4))
-        crossings = 2 * (len(vol["balls"]) + 2 * len(vol["shells"])) + 16  # boundaries are transparent bounces
+        crossings = 4 * len(vol["volumes"]) + 16  # boundaries are transparent bounces
         tx.set(cyc, "transparent_max_bounces", max(int(cyc.transparent_max_bounces), crossings))
         if scene.camera is not None and scene.camera.type == "CAMERA":
             tx.set(scene.camera.data, "clip_end", max(float(scene.camera.data.clip_end), 2.0e7))

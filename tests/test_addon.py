@@ -429,27 +429,43 @@ def test_volumetric_build_and_render(scene):
     builder.FAIL_AT = None
     build_ok()
     objs = ours(bpy.data.objects)
-    balls = [o for o in objs if o.name.startswith("Skymodel Atmosphere")]
+    layers = sorted((o for o in objs if o.name.startswith("Skymodel Atmosphere")), key=lambda o: o["skymodel_top_m"])
     ground = bpy.data.objects["Skymodel Ground"]
-    assert len(balls) == 4
+    assert len(layers) == 4
     assert scene.render.engine == "CYCLES" and scene.cycles.volume_bounces == 1
     assert scene.camera.data.clip_end >= 2.0e7
     assert scene.world.node_tree.nodes["Skymodel Background"].inputs["Strength"].default_value == 0.0
     R = 6_360_000.0
-    tops = sorted(o["skymodel_top_m"] for o in balls)
-    assert tops[-1] == pytest.approx(100_000.0)
-    for o in balls + [ground]:
+    assert layers[-1]["skymodel_top_m"] == pytest.approx(100_000.0, abs=25.0)
+    assert "skymodel_bottom_m" not in layers[0]  # the lowest layer: a ball around the camera
+    for below, above in zip(layers, layers[1:]):  # the rest: shells, none overlapping another
+        assert below["skymodel_top_m"] < above["skymodel_bottom_m"] < above["skymodel_top_m"]
+    for o in layers + [ground]:
         me = o.data
         co = np.empty(len(me.vertices) * 3)
         me.vertices.foreach_get("co", co)
         r = np.linalg.norm(co.reshape(-1, 3) + [0, 0, R], axis=1)
-        want = R + (o["skymodel_top_m"] if o is not ground else -0.01)
-        assert np.allclose(r, want, rtol=2e-7, atol=1.0)
+        want = [R + (o["skymodel_top_m"] if o is not ground else -0.01)]
+        if "skymodel_bottom_m" in o:
+            want.append(R + o["skymodel_bottom_m"])
+        on = np.zeros(r.shape, bool)
+        for w in want:
+            on |= np.isclose(r, w, rtol=2e-7, atol=1.0)
+        assert on.all()
         n = np.empty(len(me.polygons) * 3)
         me.polygons.foreach_get("normal", n)
         c = np.empty(len(me.polygons) * 3)
         me.polygons.foreach_get("center", c)
-        assert np.all(np.sum(n.reshape(-1, 3) * (c.reshape(-1, 3) + [0, 0, R]), axis=1) > 0)  # outward
+        c = c.reshape(-1, 3) + [0, 0, R]
+        outward = np.sum(n.reshape(-1, 3) * c, axis=1) > 0
+        # outer surfaces face out, a shell's inner surface faces in (towards the planet centre):
+        # which surface a polygon is on, from the radius of its first vertex
+        starts = np.empty(len(me.polygons), np.int32)
+        me.polygons.foreach_get("loop_start", starts)
+        vidx = np.empty(len(me.loops), np.int32)
+        me.loops.foreach_get("vertex_index", vidx)
+        on_top = np.isclose(r[vidx[starts]], want[0], rtol=2e-7, atol=1.0)
+        assert np.all(outward == on_top)
     # the camera sits on the ground: the pole of the ground sphere is right under it
     assert ground.data.vertices[0].co.z == pytest.approx(-0.01, abs=1e-3)
     img = render(scene, width=32, height=16, samples=8)
@@ -518,10 +534,3 @@ def test_panel_draws_every_mode(scene, mode):
     props = {n for kind, n in log if kind == "prop"}
     assert {"mode", "quality", "location"} <= props
     assert ("n_layers" in props) == (mode == "VOLUMETRIC")
-    warned = any(kind == "label" and "Known issue" in text for kind, text in log)
-    assert warned == (mode == "VOLUMETRIC" and s.n_layers > 2)
-    if mode == "VOLUMETRIC":
-        s.n_layers = 2
-        log.clear()
-        ui.draw_settings(_RecordingLayout(log), bpy.context)
-        assert not any(kind == "label" and "Known issue" in text for kind, text in log)

@@ -76,15 +76,18 @@ def test_exposure_rule_puts_a_white_plate_at_one():
     assert physics.horizontal_illuminance(rgb * 0, cam, 100.0, 30.0) == pytest.approx(50.0)
 
 
-def test_balls_and_shells_rebuild_every_layer():
-    rng = np.random.default_rng(3)
-    c = np.abs(rng.normal(size=(9, 3))) * np.linspace(3, 1, 9)[:, None]
-    c[6] += 2.0  # a stratospheric bump
-    b, rest = volumetric.split_monotone(c)
-    d = volumetric.differences(b)
-    assert np.all(d >= 0) and np.all(rest >= 0)
-    inside = np.cumsum(d[::-1], axis=0)[::-1]  # layer i lies inside balls i..N-1
-    assert np.allclose(inside + rest, c)
+def test_layer_volumes_never_overlap_and_keep_each_layer_optical_depth():
+    edges = [0.0, 150.0, 543.0, 1535.0, 100_000.0]
+    vols = volumetric.layer_volumes(edges)
+    assert vols[0][0] is None  # the lowest layer is a ball around the camera
+    bounds = [0.0] + [x for bottom, top, _ in vols for x in ((bottom,) if bottom is not None else ()) + (top,)]
+    assert all(b > a for a, b in zip(bounds, bounds[1:]))  # strictly increasing: no overlap, no shared surface
+    for i, (bottom, top, scale) in enumerate(vols):
+        lo, hi = edges[i], edges[i + 1]
+        inset = min(volumetric.SHELL_INSET_M, 0.1 * (hi - lo))
+        assert top == pytest.approx(hi - inset)
+        assert (bottom is None) == (i == 0) and (bottom is None or bottom == pytest.approx(lo + inset))
+        assert scale * (top - (lo if bottom is None else bottom)) == pytest.approx(hi - lo)
 
 
 def test_rgb_projection_weights():
@@ -114,26 +117,34 @@ def test_tessellation_sag_is_sub_metre_near_the_camera():
     assert 0 <= quads.min() and quads.max() < len(verts)
 
 
-def test_volume_layers_stay_in_the_closure_budget():
+def test_volume_layers_hold_each_layer_in_one_volume():
     plan = physics.resolve(physics.SkyParams(location="urban", month=7, sun_elevation_deg=30, mode="VOLUMETRIC",
                                              n_layers=8))
     vol = volumetric.volume_layers(plan, 8)
-    assert len(vol["balls"]) == 8 and vol["closures_at_camera"] <= volumetric.CLOSURE_BUDGET
-    assert vol["balls"][-1]["top_m"] == pytest.approx(100_000.0)
-    for ball in vol["balls"]:
-        for sc in ball["scatter"].values():
-            assert min(sc) >= 0  # negative scattering differences render wrong in Cycles
-    tau_sh = sum((s["top_m"] - s["bottom_m"]) * np.array(v) for s in vol["shells"] for v in s["scatter"].values())
-    assert np.all(np.asarray(tau_sh) >= 0)
-    assert vol["phases"]["aerosol0"]["g1"] > 0.5
-    many = volumetric.volume_layers(plan, 24)  # falls back to one lobe per aerosol regime
-    assert many["closures_at_camera"] <= volumetric.CLOSURE_BUDGET
-    assert many["phases"]["aerosol0"]["lobes"] == 1
+    assert len(vol["volumes"]) == 8 and vol["closures_per_volume"] <= volumetric.MAX_PHASE_CLOSURES
+    assert vol["volumes"][-1]["top_m"] == pytest.approx(100_000.0 - volumetric.SHELL_INSET_M)
+    assert vol["phases"]["aerosol0"]["g1"] > 0.5 and vol["phases"]["aerosol0"]["lobes"] == 2
+    lay, w = vol["layered"], vol["weights"]
+    thick = np.diff(lay.edges_m)
+    for v in vol["volumes"]:
+        inner = v["top_m"] - (0.0 if v["bottom_m"] is None else v["bottom_m"])
+        i = v["layer"]
+        for name, sc in v["scatter"].items():  # each species' optical depth through the layer kept
+            assert np.allclose(np.array(sc) * inner, vol["closure_scattering"][name][i] * thick[i], rtol=1e-9)
+    # the marcher's model (volumes and empty gaps) has the layered medium's vertical optical depth
+    prof = volumetric.rgb_model_profile(vol)
+    ext = prof.rayleigh_scattering + prof.aerosol_scattering_by_regime.sum(axis=0) + prof.ozone_absorption
+    want = (sum(vol["closure_scattering"].values()) + np.maximum(
+        volumetric.project(lay.ozone_absorption + lay.aerosol_absorption, w), 0.0))[:, volumetric.TO_RGB]
+    assert np.allclose(prof.vertical_optical_depth(ext), (want * thick[:, None]).sum(axis=0), rtol=1e-9)
+    many = volumetric.volume_layers(plan, 24)  # any number of layers: still one volume at a point
+    assert many["closures_per_volume"] <= volumetric.MAX_PHASE_CLOSURES
+    assert many["phases"]["aerosol0"]["lobes"] == 2
 
 
 def test_too_many_closures_are_refused(monkeypatch):
     plan = physics.resolve(physics.SkyParams(location="urban", month=7, sun_elevation_deg=30, n_layers=8))
-    monkeypatch.setattr(volumetric, "CLOSURE_BUDGET", 10)
+    monkeypatch.setattr(volumetric, "MAX_PHASE_CLOSURES", 2)
     with pytest.raises(SkymodelInputError) as e:
         volumetric.volume_layers(plan, 8)
     assert e.value.parameter == "n_layers"
@@ -162,4 +173,7 @@ def test_closure_split_keeps_totals_and_luminance_and_gives_one_share_per_specie
     assert not np.allclose(raw[1][0] / raw[1][0, 1], raw[0][0] / raw[0][0, 1], rtol=0.05)
     # the marcher's RGB model holds exactly the split coefficients
     prof = volumetric.rgb_model_profile(vol)
-    assert np.allclose(prof.rayleigh_scattering[:, volumetric.TO_RGB], split[0])
+    inner = prof.rayleigh_scattering[::2, volumetric.TO_RGB]  # layers and gaps alternate
+    scale = np.array([v["scale"] for v in vol["volumes"]])
+    assert np.allclose(inner, split[0] * scale[:, None])
+    assert np.all(prof.rayleigh_scattering[1::2] == 0)
