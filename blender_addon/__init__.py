@@ -1,5 +1,5 @@
 """skymodel for Blender: a physically based, spectral sky (world environment, sun lamp,
-and nested atmosphere volumes for Cycles), computed by the ``skymodel`` physics core.
+and layered atmosphere volumes for Cycles), computed by the ``skymodel`` physics core.
 
 Extension-style add-on (no ``bl_info``; the manifest is ``blender_manifest.toml``).
 Settings live on ``World.skymodel``; the panels are in World properties and in the 3D
