@@ -95,7 +95,9 @@ def test_more_wavelengths_shrink_the_error(quick):
 
 def test_reference_preset_has_zero_error(quick):
     ref = quick["presets"]["reference"]["noon"]
-    assert ref["radiance_rel_mean"] == 0.0 and ref["de2000_mean"] == 0.0
+    # the reference against itself: zero up to rounding (the colour conversion's BLAS sums are not
+    # bit-reproducible between runs: a CI run measured dE2000 1.6e-15)
+    assert ref["radiance_rel_mean"] < 1e-12 and ref["de2000_mean"] < 1e-9
     assert quick["presets"]["final"]["noon"]["radiance_rel_mean"] > 0.0
 
 
