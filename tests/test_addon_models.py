@@ -8,6 +8,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 import numpy as np  # noqa: E402
+from test_addon import add_pano_camera  # noqa: E402
 
 pytestmark = pytest.mark.blender
 
@@ -93,13 +94,7 @@ def test_blender_sky_texture_node_points_its_sun_at_the_lamp(scene):
     scene.cycles.use_denoising = False
     scene.render.resolution_x, scene.render.resolution_y = 32, 16
     sun.hide_render = True
-    cd = bpy.data.cameras.new("pano")
-    cd.type = "PANO"
-    cd.panorama_type = "EQUIRECTANGULAR"
-    cam = bpy.data.objects.new("pano", cd)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    cam.rotation_euler = (math.pi / 2, 0.0, math.atan2(to_sun[1], to_sun[0]) - math.pi / 2)
+    add_pano_camera(scene, math.degrees(math.atan2(to_sun[0], to_sun[1])))  # centred on the sun's azimuth
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.filepath = os.path.join(tempfile.mkdtemp(prefix="skymodel-test-"), "pano.exr")
     bpy.ops.render.render(write_still=True)
