@@ -42,6 +42,9 @@ from .rays import altitude_along, atmosphere_segment, sun_direction
 from .sun_transmittance import SunTransmittance
 
 MAX_OBSERVER_ALTITUDE_M = 120_000.0
+#: Largest peak optical depth (sun path + view path) the aureole table covers; beyond
+#: it the light is spread over tens of degrees and the table's last column is used.
+AUREOLE_MAX_PEAK_TAU = 30.0
 
 
 @dataclass(frozen=True)
@@ -67,6 +70,9 @@ class MarchSettings:
     grid_azimuth: int = 61  # azimuth-from-the-sun nodes over 0..180 degrees
     sun_exact_deg: float = 8.0  # directions this close to the sun are evaluated exactly
     delta_m_cutoff_deg: float = 12.0
+    spherical_orders: int = 2  # transports with each point's own sun angle (0 = independent columns)
+    spherical_probe_step_nm: float = 100.0  # wavelength spacing of the spherical correction (orders >= 2)
+    peak_aureole: bool = True  # add the light scattered 2+ times in the cut forward peaks (skymodel.render.aureole)
     chunk: int = 2048  # directions per batch (memory ~ chunk * view_steps * n_wl * 8 B * 6)
     earth_shadow: bool = True  # False: the planet blocks no sunlight (for measuring the shadow's effect)
 
@@ -175,8 +181,10 @@ class SkyMarcher:
         self.field: MultipleScatteringField = solve_multiple_scattering(
             prof_ms, self.medium_ms, self.sun_table, n_altitudes=s.table_altitudes, n_mu=s.table_mu,
             n_phi=s.table_phi, n_mus=s.table_mus, n_steps=s.table_steps, orders=s.orders,
-            max_orders=s.max_orders, tolerance=s.order_tolerance, progress=progress)
+            max_orders=s.max_orders, tolerance=s.order_tolerance, spherical_orders=s.spherical_orders,
+            spherical_probe_step_nm=s.spherical_probe_step_nm, progress=progress)
         self.to_full = _interp_matrix(wl_ms, profile.wavelengths_nm)
+        self._aureole = self._peak_aureole() if (s.peak_aureole and self.field.orders > 1) else None
         self.timings["multiple_scattering_s"] = time.perf_counter() - t1
         t2 = time.perf_counter()
         self._grid = None if s.exact else self._build_grid()
@@ -284,6 +292,63 @@ class SkyMarcher:
         tab = self.medium.truncated_phase * (1.0 - self.medium.forward_fraction)[:, None, :]
         return tab[:, idx, :] * (1.0 - t) + tab[:, idx + 1, :] * t
 
+    def _peak_aureole(self):
+        """Table of the peak light that delta-M leaves out (:mod:`skymodel.render.aureole`):
+        (theta grid in radians, peak optical depth grid, table (n_theta, n_tau, n_wl) in
+        sr^-1), or None when the aerosols have no truncated peak."""
+        from ..numerics import trapezoid
+        from .aureole import THETA_MAX_RAD, PeakAureole, peak_part
+
+        prof, med = self.profile, self.medium
+        if not np.any(med.forward_fraction > 0):
+            return None
+        # one peak shape: the regimes' normalised peaks weighted by their column peak optical depth
+        z = np.linspace(0.0, self.top, 2001)
+        col = np.stack([trapezoid(lr.at(z), z, axis=0) for lr in med.aerosol]) * med.forward_fraction  # (R, W)
+        total = col.sum(axis=0)
+        machine = PeakAureole()
+        peaks = peak_part(prof.aerosol_phase_angles_deg, prof.aerosol_phase, self.settings.delta_m_cutoff_deg)
+        q = np.zeros((machine.theta.size, prof.wavelengths_nm.size))
+        for r in range(peaks.shape[0]):
+            if np.any(col[r] > 0):
+                share = np.where(total > 0, col[r] / np.where(total > 0, total, 1.0), 0.0)
+                q += machine.shape_on_grid(prof.aerosol_phase_angles_deg, peaks[r]) * share
+        theta = np.linspace(0.0, THETA_MAX_RAD, 601)
+        tau = np.concatenate([[0.0], np.geomspace(0.005, AUREOLE_MAX_PEAK_TAU, 47)])
+        return theta, tau, machine.correction_table(q, tau, theta)
+
+    def _aureole_gather(self, cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s):
+        """Integral along view rays (C, S) of the peak light left out by delta-M:
+        sigma_peak E_sun T*_sun T*_view C(theta, tau_peak) dt, (C, n_wl); tau_peak is the
+        peak optical depth of the sun path to the point plus the view path from it."""
+        theta_g, tau_g, table = self._aureole
+        theta = np.arccos(np.clip(cos_theta, -1.0, 1.0))
+        out = np.zeros((cos_theta.size, ext.shape[-1]))
+        near = np.nonzero(theta < theta_g[-1])[0]
+        if near.size == 0:
+            return out
+        sig_pk = np.maximum(ext[near] - ext_s[near], 0.0)  # peak scattering, m^-1
+        tiny = 1e-300
+        tau_sun = np.log(np.maximum(t_sun_s[near], tiny) / np.maximum(t_sun[near], tiny))
+        step = sig_pk * dt[near][..., None]
+        tau = np.clip(tau_sun + np.cumsum(step, axis=1) - 0.5 * step, 0.0, tau_g[-1])
+        x = theta[near] / theta_g[-1] * (theta_g.size - 1)
+        i = np.clip(x.astype(int), 0, theta_g.size - 2)
+        fi = np.clip(x - i, 0.0, 1.0)[:, None, None]
+        j = np.clip(np.searchsorted(tau_g, tau, side="right") - 1, 0, tau_g.size - 2)
+        fj = (tau - tau_g[j]) / (tau_g[j + 1] - tau_g[j])
+        w_idx = np.arange(ext.shape[-1])
+        n_tau, n_wl = tau_g.size, ext.shape[-1]
+        flat = table.reshape(-1)
+
+        def at(ii, jj):
+            return flat[(ii[:, None, None] * n_tau + jj) * n_wl + w_idx]
+
+        c = ((at(i, j) * (1 - fj) + at(i, j + 1) * fj) * (1 - fi)
+             + (at(i + 1, j) * (1 - fj) + at(i + 1, j + 1) * fj) * fi)
+        out[near] = (sig_pk * t_sun_s[near] * trans_s[near] * c * dt[near][..., None]).sum(axis=1)
+        return out * self.profile.solar_irradiance
+
     # ---------------------------------------------------------------- public
     def direct_sun_irradiance(self) -> np.ndarray:
         """Solar irradiance (W m^-2 nm^-1) on a surface facing the sun at the observer,
@@ -366,6 +431,8 @@ class SkyMarcher:
                 peak = peak + sig * np.maximum(pa[reg] - p_cap[reg], 0.0)[:, None, :]
             single = prof.solar_irradiance * ((trans_s * t_sun_s * broad + trans * t_sun * peak)
                                               * dt[..., None]).sum(axis=1)
+            if self._aureole is not None:
+                aureole = self._aureole_gather(cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s)
             step_tau_ground = step_tau_s
         # ground seen directly: direct sun and (from the solver) diffuse sky light
         ground = np.zeros_like(single)
@@ -383,6 +450,8 @@ class SkyMarcher:
                 e_diff = (self.field.ground_irradiance_at(mus_g) @ self.to_full) * prof.solar_irradiance
                 ms_ground[gi] = t_ground * prof.ground_albedo / np.pi * e_diff
         multiple = ms_ground
+        if ms_on and self._aureole is not None:
+            multiple = multiple + aureole
         if ms_on:
             multiple = multiple + (self._gather_ms(d, t, dt, h, up) @ self.to_full) * prof.solar_irradiance
         return single, multiple, ground

@@ -5,14 +5,26 @@ on the altitude h of a point, the cosine mu_s of the sun's zenith angle there, a
 viewing direction (cosine mu of its zenith angle, azimuth phi from the sun's vertical
 plane, phi in [0, pi] by symmetry). We solve for the light scattered twice or more on
 that 4-D grid, at a reduced set of wavelengths (the multiple-scattering spectrum is
-smooth), in the *independent column* approximation: inside the solver a ray keeps the
-mu_s and phi of the point it starts from (as in a plane-parallel atmosphere) while its
-path, altitude and local zenith angle follow the true spherical geometry, so horizontal
-rays stay finite and rays that meet the ground stop there. The sun light that feeds
-the first order is attenuated along the true spherical path, so the Earth's shadow is
-in the source. The final image integrates the resulting source J_ms along each view ray
-with every point's own mu_s (:mod:`skymodel.render.marcher`), which restores the
-spherical geometry where it is seen.
+smooth). Its transport, the integral of a source along the ray through each grid node,
+is done in two ways:
+
+* the *independent column* approximation (the matrix M below): along a ray the source is
+  read at the mu_s and phi of the point the ray starts from (as in a plane-parallel
+  atmosphere), while path, altitude and local zenith angle follow the true spherical
+  geometry, so horizontal rays stay finite and rays that meet the ground stop there;
+* the *spherical* transport, where every point of the ray has its own sun angle,
+  mu_s(t) = (r0 mu_s0 + t d.s) / r(t): the sun rises by about one degree for every 111
+  km travelled toward it, so from a point in the Earth's shadow the air toward the sun
+  is sunlit. The light scattered once is transported this way exactly
+  (:func:`_first_order_spherical`); the second order's column transport is corrected
+  by the ratio of the two at a few probe wavelengths (:class:`_SphericalTransport`);
+  higher orders keep the columns. Measured against the Monte Carlo tracer at sun
+  elevation -4 degrees (docs/accuracy.md): the median difference over the sky fell from
+  15 % (columns) to about 1 %.
+
+The sun light that feeds the first order is attenuated along the true spherical path,
+so the Earth's shadow is in the source. The final image integrates the resulting source
+J_ms along each view ray with every point's own mu_s (:mod:`skymodel.render.marcher`).
 
 Each order is two matrix products per wavelength:
 
@@ -34,7 +46,9 @@ grid; we truncate the peak inside a cone (delta-M, Wiscombe 1977) and treat the 
 fraction f as unscattered (sigma_s* = (1 - f) sigma_s) inside the solver. The single
 scattering seen in the image is computed exactly with the full phase function and the
 true extinction (the TMS correction of Nakajima & Tanaka 1988), so the truncation only
-touches the multiple-scattering part.
+touches the multiple-scattering part; the light it still leaves out, scattered two or
+more times inside the peaks (the bright aureole around a low sun in dust), is added by
+the marcher in the small-angle approximation (:mod:`skymodel.render.aureole`).
 """
 
 from __future__ import annotations
@@ -46,7 +60,7 @@ import numpy as np
 from ..geometry import altitude_grid
 from .medium import FactoredMedium, march_samples
 from .rays import altitude_along
-from .sun_transmittance import SunTransmittance
+from .sun_transmittance import SUN_ANGULAR_RADIUS_RAD, SunTransmittance
 
 
 def sun_elevation_nodes(n: int, lowest_deg: float = -20.0) -> np.ndarray:
@@ -138,22 +152,31 @@ def _sun_interp(a, b, f, below):
     (linear in log) where ``below`` and both are positive, else linearly. Measured at
     sun elevation -4 degrees (synthetic AOD 0.2 sky, 24 sun nodes): linear interpolation
     put the multiple-scattering radiance of the anti-sun horizon 25 % above its
-    value with 192 nodes; geometric interpolation is within about 3 % of it at 24 nodes."""
-    lin = a * (1.0 - f) + b * f
-    pos = below & (a > 0.0) & (b > 0.0)
-    la = np.log(np.where(pos, a, 1.0))
-    lb = np.log(np.where(pos, b, 1.0))
-    return np.where(pos, np.exp(la * (1.0 - f) + lb * f), lin)
+    value with 192 nodes; geometric interpolation is within about 3 % of it at 24 nodes.
+    (The logarithms are taken only where they are needed.)"""
+    out = a * (1.0 - f) + b * f
+    pos = np.broadcast_to(below, out.shape) & (a > 0.0) & (b > 0.0)
+    if np.any(pos):
+        fb = np.broadcast_to(f, out.shape)[pos]
+        out[pos] = np.exp(np.log(np.broadcast_to(a, out.shape)[pos]) * (1.0 - fb)
+                          + np.log(np.broadcast_to(b, out.shape)[pos]) * fb)
+    return out
 
 
 def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTransmittance, *,
                               n_altitudes: int = 24, n_mu: int = 32, n_phi: int = 12, n_mus: int = 24,
                               n_steps: int = 48, orders: int | None = None, max_orders: int = 20,
-                              tolerance: float = 1e-3, progress=None) -> MultipleScatteringField:
+                              tolerance: float = 1e-3, spherical_orders: int = 2,
+                              spherical_probe_step_nm: float = 100.0, progress=None) -> MultipleScatteringField:
     """Solve orders 2..N of scattering for ``profile`` (already at the solver's
     wavelengths). ``sun_table`` must hold the delta-M scaled extinction as medium 1.
     ``orders`` fixes the highest order (1 = single scattering only, no field); otherwise
-    orders are added until the last one adds less than ``tolerance`` of the total."""
+    orders are added until the last one adds less than ``tolerance`` of the total.
+    ``spherical_orders`` is how many transports (of the light scattered once, twice,
+    ...) follow the sun angle of every point along the grid rays instead of keeping
+    the independent columns: 0 none, 1 the first (exact, :func:`_first_order_spherical`),
+    n > 1 also orders 2..n, corrected at probe wavelengths about
+    ``spherical_probe_step_nm`` apart (:class:`_SphericalTransport`)."""
     wl = profile.wavelengths_nm
     n_wl = wl.size
     R = profile.planet_radius_m
@@ -226,7 +249,8 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
     ext_nodes = medium.extinction_scaled.at(h_nodes)  # (n_h, n_wl)
     ext_interp = ext_nodes[ih] * (1.0 - fh)[..., None] + ext_nodes[np.minimum(ih + 1, h_nodes.size - 1)] * fh[..., None]
     gathered = (base * ext_interp).sum(axis=1)  # (rays, n_wl)
-    M *= (1.0 / np.maximum(gathered, 1.0))[:, None, :]
+    row_scale = 1.0 / np.maximum(gathered, 1.0)  # (rays, n_wl)
+    M *= row_scale[:, None, :]
     M = np.ascontiguousarray(np.moveaxis(M, -1, 0), dtype=np.float32)  # (n_wl, rays, nodes)
     G = ground_t.T.astype(np.float32)  # (n_wl, rays)
 
@@ -311,9 +335,22 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
         return out.reshape(n_wl, n_dir, n_altitudes, n_mus)
 
     albedo = albedo.astype(np.float32)
-    lg = (albedo[None, :] / np.pi * e_direct_ground).astype(np.float32)
-    radiance = transport(j1, lg)
+    if spherical_orders >= 1:
+        radiance = to_dir(_first_order_spherical(
+            sun_table, profile, species_sigma_at=[medium.rayleigh] + [medium.aerosol_scaled[r] for r in range(n_reg)],
+            species_phase=[profile.rayleigh_phase] + [aerosol_phase_fn(r) for r in range(n_reg)],
+            r0=r0, mu0=mu0, t=t, dt=dt, h=h, trans=trans, hits=hits, ground_t=ground_t, mus_nodes=mus_nodes,
+            phi_nodes=phi_nodes, n_mu=n_mu, R=R).astype(np.float32))
+    else:
+        lg = (albedo[None, :] / np.pi * e_direct_ground).astype(np.float32)
+        radiance = transport(j1, lg)
     e_diffuse = ground_irradiance(radiance)
+    sph = None
+    if spherical_orders > 1:
+        sph = _SphericalTransport(ih=ih, fh=fh, im=im, fm=fm, weight=base * row_scale[:, None, :], r0=r0, mu0=mu0, t=t,
+                                  dt=dt, h=h, R=R, hits=hits, ground_t=ground_t, h_nodes=h_nodes, mu_nodes=mu_nodes,
+                                  phi_nodes=phi_nodes, mus_nodes=mus_nodes, wavelengths_nm=wl,
+                                  probe_step_nm=spherical_probe_step_nm)
     j_ms = np.zeros_like(j1)
     contributions = []
     sizes = []  # per order: sum of |J_n| per wavelength
@@ -329,6 +366,8 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
             progress(n, size)
         lg = albedo[None, :] / np.pi * ground_irradiance(radiance)
         radiance = transport(j_n, lg)
+        if sph is not None and n <= spherical_orders:
+            radiance = radiance * sph.correction(j_n, lg, radiance)
         e_n = ground_irradiance(radiance)
         e_diffuse = e_diffuse + e_n
         sizes.append(np.abs(j_n).sum(axis=(1, 2, 3), dtype=np.float64))  # per wavelength
@@ -352,3 +391,231 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
     source = j_ms.reshape(n_wl, n_mu, n_phi, n_altitudes, n_mus).astype(np.float64)
     return MultipleScatteringField(wl, h_nodes, mu_nodes, phi_nodes, mus_nodes, source, e_diffuse.astype(np.float64),
                                    n_done, contributions)
+
+
+def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phase, r0, mu0, t, dt, h, trans,
+                           hits, ground_t, mus_nodes, phi_nodes, n_mu, R, max_elements: int = 8_000_000):
+    """Radiance of light scattered once, arriving at every grid node, with the true
+    spherical geometry of the sun: (n_wl, n_h * n_mu rays, n_phi * n_mus).
+
+    The independent-column transport would give every point of a grid ray the sun
+    cosine of the ray's start. In the sphere the sun is higher by about one degree for
+    every 111 km travelled toward it, which matters most in twilight: from a point in
+    the Earth's shadow, air a few hundred kilometres toward the sun is sunlit. The first
+    order is known in closed form at any point, so here it is evaluated at every
+    sample of every grid ray with that sample's own sun cosine,
+
+        mu_s(t) = (r0 mu_s0 + t d.s) / r(t),   d.s = mu0 mu_s0 + sin0 sin_s0 cos phi0,
+
+    and with the sun transmittance (Earth's shadow included) of the point; the
+    scattering angle is constant along the ray (parallel sun). Rays that meet the
+    ground add the direct sunlight reflected there, at the ground point's sun cosine.
+    Measured in docs/accuracy.md ("Twilight").
+
+    Arguments are the grid rays of :func:`solve_multiple_scattering`: start radius
+    ``r0`` (m) and zenith cosine ``mu0`` (rays,), samples ``t``, ``dt`` (m) and
+    altitudes ``h`` (rays, steps), scaled transmittance ``trans`` (rays, steps, n_wl),
+    ``hits`` / ``ground_t`` for rays that end on the ground. The sun's optical depth
+    is read from ``sun_table`` (medium 1) the way :meth:`SunTransmittance.optical_depth`
+    reads it, reorganised for speed: its low-rank table is first interpolated to each
+    sample's altitude, then along the distance parameter for every sun node, in float32.
+    """
+    f32 = np.float32
+    n_rays, n_steps = t.shape
+    n_phi, n_mus = phi_nodes.size, mus_nodes.size
+    n_p = n_phi * n_mus
+    n_wl = trans.shape[-1]
+    st = sun_table
+    sin_s = np.sqrt(np.clip(1.0 - mus_nodes**2, 0.0, None))
+    sin0 = np.sqrt(np.clip(1.0 - mu0**2, 0.0, None))
+    # cosine of the scattering angle per ray and (phi, sun) node: (rays, n_phi * n_mus)
+    cs = (mu0[:, None, None] * mus_nodes[None, None, :]
+          + sin0[:, None, None] * np.cos(phi_nodes)[None, :, None] * sin_s[None, None, :]).reshape(n_rays, n_p)
+    # phase of every species at the scattering angle, which depends on (mu0, phi, mu_s)
+    # only: the rays of one altitude share it (ray index = altitude * n_mu + mu index)
+    phases = np.stack([np.moveaxis(np.asarray(pf(cs[:n_mu]), dtype=f32), -1, 1)
+                       for pf in species_phase])  # (K species, n_mu, n_wl, n_p)
+    # dt T sigma_k along every grid ray, (rays, n_wl, K, steps)
+    weights = np.stack([(m.at(h) * (dt[..., None] * trans)).astype(f32) for m in species_sigma_at], axis=-1)
+    weights = np.ascontiguousarray(weights.transpose(0, 2, 3, 1))
+    tab = st.tables[1].astype(f32)  # (n_h_sun, n_x, k) optical depth of the basis functions
+    wk = st.media[1].weights.astype(f32)  # (k, n_wl)
+    n_x = st.x_nodes.size
+    x_scale = (n_x - 1) / st.x_nodes[-1]
+    # per sample: altitude interpolation of the table, and the geometry of the sun table
+    hc = np.clip(h, st.h_nodes[0], st.h_nodes[-1])
+    ih = np.clip(np.searchsorted(st.h_nodes, hc, side="right") - 1, 0, st.h_nodes.size - 2)
+    fh = ((hc - st.h_nodes[ih]) / (st.h_nodes[ih + 1] - st.h_nodes[ih])).astype(f32)
+    rs = R + hc
+    rho = np.sqrt(np.clip(rs * rs - R * R, 0.0, None))
+    big_h = np.sqrt(st.r_top**2 - R * R)
+    d_min = st.r_top - rs
+    d_span = np.maximum(rho + big_h - d_min, 1e-9)
+    mu_hor = -rho / rs  # cosine of the local horizon
+    alpha = SUN_ANGULAR_RADIUS_RAD
+    e_hor = np.arcsin(np.clip(mu_hor, -1.0, 1.0))
+    mu_lo, mu_hi = np.sin(e_hor - alpha), np.sin(e_hor + alpha)  # edges of the setting disc
+    r_t = R + h
+    mus_p = np.tile(mus_nodes, n_phi)  # sun cosine of each (phi, sun) node
+    out = np.zeros((n_wl, n_rays, n_p), dtype=f32)
+    chunk = max(1, max_elements // max(1, n_steps * n_p * n_wl))
+    for a in range(0, n_rays, chunk):
+        b = min(n_rays, a + chunk)
+        c = b - a
+        # the table interpolated to each sample's altitude: (c * steps * n_x, k)
+        tab_h = (tab[ih[a:b]] * (1 - fh[a:b, :, None, None]) + tab[ih[a:b] + 1] * fh[a:b, :, None, None])
+        tab_h = tab_h.reshape(-1, tab.shape[-1])
+        mus_t = (r0[a:b, None, None] * mus_p + t[a:b, :, None] * cs[a:b, None, :]) / r_t[a:b, :, None]  # (c, steps, n_p)
+        mu = np.maximum(mus_t, mu_hor[a:b, :, None])
+        rr = rs[a:b, :, None]
+        dist = -rr * mu + np.sqrt(np.clip(rr * rr * (mu * mu - 1.0) + st.r_top**2, 0.0, None))
+        xs = np.clip((dist - d_min[a:b, :, None]) / d_span[a:b, :, None], 0.0, st.x_nodes[-1]) * x_scale
+        j = np.clip(xs.astype(np.int64), 0, n_x - 2)
+        fx = np.clip(xs - j, 0.0, 1.0).astype(f32)[..., None]
+        row = (np.arange(c * n_steps).reshape(c, n_steps, 1) * n_x + j).ravel()
+        tau_k = np.take(tab_h, row, axis=0).reshape(c, n_steps, n_p, -1) * (1 - fx)
+        tau_k += np.take(tab_h, row + 1, axis=0).reshape(c, n_steps, n_p, -1) * fx
+        # optical depth per wavelength, laid out (c, n_wl, steps, n_p) for the matrix product below
+        tau = np.matmul(wk.T, np.ascontiguousarray(tau_k.transpose(0, 3, 1, 2)).reshape(c, -1, n_steps * n_p))
+        trans_sun = np.exp(-tau, out=tau).reshape(c, n_wl, n_steps, n_p)
+        # visible fraction of the disc (0 in the Earth's shadow)
+        if st.earth_shadow:
+            lo, hi = mu_lo[a:b, :, None], mu_hi[a:b, :, None]
+            vis = (mus_t >= hi).astype(f32)
+            part = (mus_t > lo) & (mus_t < hi)
+            if np.any(part):
+                vis[part] = st.visible_fraction(np.broadcast_to(hc[a:b, :, None], mus_t.shape)[part], mus_t[part])
+            trans_sun *= vis[:, None]
+        # sum over the steps for every species at once: (c, n_wl, K, steps) @ (c, n_wl, steps, n_p)
+        gathered = np.matmul(weights[a:b], trans_sun)  # (c, n_wl, K, n_p)
+        out[:, a:b] += np.einsum("cwkp,kcwp->wcp", gathered, phases[:, np.arange(a, b) % n_mu])
+    hit = np.nonzero(hits)[0]
+    if hit.size:  # direct sunlight reflected where the ray meets the ground
+        t_end = t[hit, -1] + 0.5 * dt[hit, -1]
+        mus_g = np.clip((r0[hit, None] * mus_p[None, :] + t_end[:, None] * cs[hit]) / R, -1.0, 1.0)
+        t_sun_g = st.transmittance(np.zeros_like(mus_g), mus_g, which=1)  # (G, n_p, n_wl)
+        out[:, hit] += np.moveaxis((profile.ground_albedo / np.pi) * t_sun_g * np.maximum(mus_g, 0.0)[..., None]
+                                   * ground_t[hit][:, None, :], -1, 0).astype(f32)
+    out *= profile.solar_irradiance.astype(f32)[:, None, None]
+    return out  # (n_wl, rays, n_phi * n_mus)
+
+
+class _SphericalTransport:
+    """Transport of a higher-order source J_n along the grid rays with the sun angle
+    of every point, as a correction to the independent-column transport.
+
+    The column transport (the matrix M) reads J_n at each sample of a grid ray from the
+    altitude and zenith-angle nodes around it, but at the sun cosine of the ray's
+    start. Here the same samples and weights read J_n at the sample's own sun cosine
+    mu_s(t) = (r0 mu_s0 + t d.s) / r(t) (interpolated between sun nodes as in
+    :meth:`MultipleScatteringField.source_at`: geometrically where both nodes have
+    the sun below the horizon), and ground light at the ground point's sun cosine.
+
+    Two economies keep its cost near that of one more order of the column solver:
+
+    * the ratio of the two transports is smooth in wavelength (it depends on where the
+      light comes from, not on its colour), so it is evaluated at a few probe
+      wavelengths and interpolated linearly: L_n = (M J_n + G L_g) * ratio(lambda);
+    * it is evaluated only for the sun nodes up to ``max_elevation_deg``; above, the
+      ratio is 1. Measured (rural AOD 0.2, converged settings): correcting order 2
+      changes the sky by at most 0.03 % with the sun at 20 degrees, 0.3 % at 5 and
+      1.2 % at 0 (the horizons).
+
+    Sizes: ``weight`` (rays, steps, n_wl) are the quadrature weights dt T of the
+    transport matrix (row-scaled as M); ``ih, fh`` / ``im, fm`` (rays, steps) the
+    altitude and zenith-cosine interpolation of every sample.
+    """
+
+    def __init__(self, *, ih, fh, im, fm, weight, r0, mu0, t, dt, h, R, hits, ground_t, h_nodes, mu_nodes, phi_nodes,
+                 mus_nodes, wavelengths_nm, probe_step_nm, max_elevation_deg: float = 10.0,
+                 max_elements: int = 6_000_000):
+        wl = np.asarray(wavelengths_nm, float)
+        n_probe = int(np.clip(np.ceil((wl[-1] - wl[0]) / max(probe_step_nm, 1e-9)) + 1, 1, wl.size))
+        self.probe = np.unique(np.round(np.linspace(0, wl.size - 1, n_probe)).astype(int))
+        self.to_all = None if self.probe.size == wl.size else _linear_weights(wl[self.probe], wl)  # (n_probe, n_wl)
+        self.n_h, self.n_mu, self.n_phi, self.n_mus = h_nodes.size, mu_nodes.size, phi_nodes.size, mus_nodes.size
+        self.mus_nodes = mus_nodes
+        self.sub = np.nonzero(mus_nodes <= np.sin(np.radians(max_elevation_deg)))[0]  # sun nodes corrected
+        n_rays, n_steps = t.shape
+        self.n_p = self.n_phi * self.sub.size  # output (phi, corrected sun node) pairs
+        self.n_rays, self.n_steps = n_rays, n_steps
+        f32 = np.float32
+        # the four (altitude, zenith) nodes of every sample and their weights, (rays, steps, 4)
+        self.node = np.stack([(ih + dh) * self.n_mu + (im + dm) for dh in (0, 1) for dm in (0, 1)], axis=-1)
+        self.node_w = np.stack([wh * wm for wh in (1 - fh, fh) for wm in (1 - fm, fm)], axis=-1).astype(f32)
+        self.weight = np.ascontiguousarray(weight[..., self.probe], dtype=f32)  # (rays, steps, n_probe)
+        mus_sub = mus_nodes[self.sub]
+        sin_s = np.sqrt(np.clip(1.0 - mus_sub**2, 0.0, None))
+        sin0 = np.sqrt(np.clip(1.0 - mu0**2, 0.0, None))
+        # cosine of the angle between ray and sun per ray and output pair, (rays, n_p)
+        self.cs = (mu0[:, None, None] * mus_sub[None, None, :]
+                   + sin0[:, None, None] * np.cos(phi_nodes)[None, :, None] * sin_s[None, None, :]).reshape(n_rays, -1)
+        self.mus_p = np.tile(mus_sub, self.n_phi)
+        self.r0, self.t, self.r_t = r0, t, R + h
+        self.chunk = max(1, max_elements // max(1, n_steps * self.n_p * self.probe.size))
+        self.hits = np.nonzero(hits)[0]
+        t_end = t[self.hits, -1] + 0.5 * dt[self.hits, -1]
+        mus_g = (r0[self.hits, None] * self.mus_p[None, :] + t_end[:, None] * self.cs[self.hits]) / R
+        self.ground_sun = _axis(mus_nodes, np.clip(mus_g, -1.0, 1.0))  # (G, n_p) node index and fraction
+        self.ground_t = ground_t[self.hits][:, self.probe].astype(f32)  # (G, n_probe)
+
+    def transport(self, j_dir, lg):
+        """Spherical transport at the probe wavelengths for the corrected sun nodes:
+        (n_probe, rays, n_phi, n_sub). ``j_dir`` (n_wl, n_dir, n_h, n_mus) the source,
+        ``lg`` (n_mus, n_wl) the light leaving the ground."""
+        n_pr = self.probe.size
+        # source laid out (altitude * n_mu + mu, phi, mu_s, probe)
+        src = j_dir[self.probe].reshape(n_pr, self.n_mu, self.n_phi, self.n_h, self.n_mus)
+        src = np.ascontiguousarray(src.transpose(3, 1, 2, 4, 0)).reshape(self.n_h * self.n_mu, self.n_phi, self.n_mus, n_pr)
+        out = np.zeros((self.n_rays, self.n_p, n_pr), dtype=np.float32)
+        n_sub = self.sub.size
+        for a in range(0, self.n_rays, self.chunk):
+            b = min(self.n_rays, a + self.chunk)
+            c = b - a
+            # the source at every sample's altitude and zenith cosine, every (phi, sun node)
+            at_hm = np.einsum("csk,cskpmw->cspmw", self.node_w[a:b], src[self.node[a:b]])  # (c, s, phi, mus, P)
+            mus_t = (self.r0[a:b, None, None] * self.mus_p + self.t[a:b, :, None] * self.cs[a:b, None, :]) \
+                / self.r_t[a:b, :, None]  # (c, s, n_p)
+            i, f = _axis(self.mus_nodes, np.clip(mus_t, -1.0, 1.0))
+            # read along the sun axis at each sample's own sun cosine
+            rows = (np.arange(c * self.n_steps * self.n_phi).reshape(c, self.n_steps, self.n_phi, 1) * self.n_mus
+                    + i.reshape(c, self.n_steps, self.n_phi, n_sub)).ravel()
+            vals = at_hm.reshape(-1, n_pr)
+            got = _sun_interp(np.take(vals, rows, axis=0), np.take(vals, rows + 1, axis=0), f.reshape(-1, 1),
+                              (self.mus_nodes[i + 1] <= 0.0).reshape(-1, 1)).reshape(c, self.n_steps, self.n_p, n_pr)
+            out[a:b] = np.einsum("csw,cspw->cpw", self.weight[a:b], got)
+        if self.hits.size:
+            i, f = self.ground_sun
+            lgp = lg[:, self.probe]  # (n_mus, P)
+            g = _sun_interp(lgp[i], lgp[i + 1], f[..., None], (self.mus_nodes[i + 1] <= 0.0)[..., None])  # (G, n_p, P)
+            out[self.hits] += g * self.ground_t[:, None, :]
+        return np.moveaxis(out, -1, 0).reshape(n_pr, self.n_rays, self.n_phi, n_sub)
+
+    def correction(self, j_dir, lg, column_dir):
+        """Factor (n_wl, n_dir, n_h, n_mus) turning the column transport ``column_dir``
+        (the dir layout of M J + G L_g) into the spherical one."""
+        n_wl = column_dir.shape[0]
+        ratio = np.ones((n_wl, self.n_mu, self.n_phi, self.n_h, self.n_mus), dtype=np.float32)
+        if self.sub.size == 0:
+            return ratio.reshape(n_wl, -1, self.n_h, self.n_mus)
+        sph = self.transport(j_dir, lg)  # (P, rays, n_phi, n_sub)
+        col = column_dir[self.probe].reshape(self.probe.size, self.n_mu, self.n_phi, self.n_h, self.n_mus)
+        col = col[..., self.sub].transpose(0, 3, 1, 2, 4).reshape(sph.shape)
+        r = np.where(col > 0.0, sph / np.where(col > 0.0, col, 1.0), 1.0)  # (P, rays, n_phi, n_sub)
+        if self.to_all is not None:
+            r = np.einsum("p...,pw->w...", r, self.to_all)
+        r = r.reshape(n_wl, self.n_h, self.n_mu, self.n_phi, self.sub.size).transpose(0, 2, 3, 1, 4)
+        ratio[..., self.sub] = r
+        return ratio.reshape(n_wl, -1, self.n_h, self.n_mus)
+
+
+def _linear_weights(src, dst):
+    """(n_src, n_dst) weights of linear interpolation from ``src`` to ``dst`` (clamped)."""
+    w = np.zeros((src.size, dst.size))
+    if src.size == 1:
+        w[0] = 1.0
+        return w
+    i, f = _axis(src, dst)
+    w[i, np.arange(dst.size)] += 1.0 - f
+    w[i + 1, np.arange(dst.size)] += f
+    return w

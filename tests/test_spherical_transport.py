@@ -1,0 +1,85 @@
+"""The multiple-scattering solver's transport with each point's own sun angle
+(skymodel.render.multiple_scattering: the spherical first order and the correction of
+the higher orders), checked against the marcher's single scattering, which has always
+used the true spherical geometry."""
+
+import numpy as np
+import pytest
+from synthetic import synthetic_profile
+
+from skymodel.render.marcher import MarchSettings, SkyMarcher
+from skymodel.render.medium import factor_medium, march_samples
+from skymodel.render.multiple_scattering import _first_order_spherical
+from skymodel.render.rays import altitude_along, atmosphere_segment, direction_from_angles
+from skymodel.render.sun_transmittance import SunTransmittance
+
+WL = (450.0, 650.0)
+
+
+@pytest.fixture(scope="module")
+def rayleigh_only():
+    return synthetic_profile(WL, aod550=0.0, ozone_tau550=0.0)
+
+
+@pytest.mark.parametrize("h0, zenith_deg", [(0.0, 60.0), (0.0, 89.0), (5000.0, 80.0), (20000.0, 95.0)])
+def test_first_order_radiance_is_the_spherical_single_scattering(rayleigh_only, h0, zenith_deg):
+    """Light scattered once, arriving at a grid node, is the single-scattering radiance an
+    observer at that node sees: the solver's first transport must reproduce the
+    marcher's single scattering (Rayleigh only, so no delta-M split) for the sun high,
+    low and below the horizon (Earth's shadow over part of the ray). The old
+    independent-column transport gave every point the node's own sun angle; at -4
+    degrees it put the light of a horizontal ray toward the sun 40-100 % too low."""
+    prof = rayleigh_only
+    R, top = prof.planet_radius_m, prof.top_altitude_m
+    med = factor_medium(prof)
+    table = SunTransmittance([med.extinction, med.extinction_scaled], R, top, 96, 192, 160)
+    mu0 = np.cos(np.radians(zenith_deg))
+    p = np.array([[0.0, 0.0, R + h0]])
+    d = np.array([[np.sqrt(1 - mu0**2), 0.0, mu0]])
+    t0, t1, hits = atmosphere_segment(p, d, R, R + top)
+    t, dt = march_samples(p, d, t0, t1, 400, R)
+    h = np.clip(altitude_along(p, d, t, R), 0.0, None)
+    ext = med.extinction_scaled.at(h)
+    tau = np.cumsum(ext * dt[..., None], axis=1) - 0.5 * ext * dt[..., None]
+    elevations = np.array([-4.0, -1.0, 2.0, 10.0, 45.0])
+    phis = np.radians([0.0, 60.0, 180.0])
+    l1 = _first_order_spherical(table, prof, species_sigma_at=[med.rayleigh], species_phase=[prof.rayleigh_phase],
+                                r0=np.array([R + h0]), mu0=np.array([mu0]), t=t, dt=dt, h=h, trans=np.exp(-tau),
+                                hits=hits, ground_t=np.zeros((1, len(WL))), mus_nodes=np.sin(np.radians(elevations)),
+                                phi_nodes=phis, n_mu=1, R=R)  # (n_wl, 1, n_phi * n_elev)
+    l1 = l1[:, 0, :].reshape(len(WL), phis.size, elevations.size)
+    single = MarchSettings(exact=True, orders=1, view_steps=400)
+    for m, elev in enumerate(elevations):
+        marcher = SkyMarcher(prof, float(elev), 180.0, h0, single)
+        look = direction_from_angles(np.full(phis.size, zenith_deg), 180.0 + np.degrees(phis))
+        ref = marcher.radiance(look).single  # (n_phi, n_wl)
+        got = l1[:, :, m].T
+        lit = ref > 1e-6 * ref.max()
+        np.testing.assert_allclose(got[lit], ref[lit], rtol=0.02)
+        assert np.all(got[~lit] <= 1e-4 * max(ref.max(), 1e-300))
+
+
+def test_spherical_transport_changes_nothing_with_a_high_sun():
+    """With the sun high the sun angle hardly changes along the rays that matter, so the
+    spherical transport (first order exact, second corrected) must agree with the
+    independent columns once the tables resolve the medium: within 0.3 % of the total
+    radiance. On coarse tables the spherical first order is the better of the two, as
+    it reads the medium at every sample instead of interpolating the source linearly
+    between altitude nodes (measured: multiple scattering 1-12 % high against fine
+    tables, against 3-17 % for the columns)."""
+    from dataclasses import replace
+
+    prof = synthetic_profile(WL, aod550=0.2)
+    d = direction_from_angles(np.array([0.0, 45.0, 80.0, 88.0]), np.array([0.0, 180.0, 90.0, 0.0]))
+    coarse = MarchSettings(exact=True, table_altitudes=16, table_mu=16, table_phi=8, table_mus=16,
+                           ms_wavelength_step_nm=100, peak_aureole=False)
+    fine = replace(coarse, table_altitudes=48, table_mu=32, table_phi=12, table_mus=24, table_steps=96)
+
+    def run(settings, n):
+        return SkyMarcher(prof, 45.0, 180.0, 0.0, replace(settings, spherical_orders=n)).radiance(d)
+
+    col, sph = run(fine, 0), run(fine, 2)
+    np.testing.assert_allclose(sph.radiance, col.radiance, rtol=0.003)
+    err_col = np.abs(run(coarse, 0).multiple / sph.multiple - 1)
+    err_sph = np.abs(run(coarse, 2).multiple / sph.multiple - 1)
+    assert np.all(err_sph < err_col)
