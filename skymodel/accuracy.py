@@ -72,7 +72,7 @@ LOCATION = "rural"
 MONTH = 6
 SUN_AZIMUTH_DEG = 180.0
 #: Knob names, as in presets/accuracy/measured.json.
-KNOBS = ("wavelengths", "orders", "layers", "angular_grid", "phase", "mc_samples", "preset")
+KNOBS = ("wavelengths", "orders", "layers", "angular_grid", "phase", "geometry", "mc_samples", "preset")
 #: The RGB shortcut's wavelengths (nm): red, green, blue.
 RGB3_WAVELENGTHS_NM = (680.0, 550.0, 440.0)
 #: Monte Carlo check directions: (view zenith, azimuth from the sun), degrees.
@@ -125,6 +125,11 @@ class BenchConfig:
     layers: tuple = (4, 8, 16, 32, 64, "smooth")
     angular_grid: tuple = (0.25, 0.5, 1.0, 1.5)
     phase: tuple = ("mie", "hg", "dhg")
+    #: how much of the sphere's geometry and of the forward peak the multiple scattering
+    #: keeps: "columnsN" = transports of orders 1..N with each point's own sun angle
+    #: (0: independent columns throughout), "no-aureole" = the baseline without the
+    #: peak aureole (skymodel.render.aureole)
+    geometry: tuple = ("columns0", "columns1", "columns2", "columns3", "no-aureole")
     mc_samples: tuple = (64, 256, 1024, 4096)
     mc_wavelength_step_nm: float = 20.0
     repeat: bool = True
@@ -150,7 +155,7 @@ def quick_config() -> BenchConfig:
     presets = {"preview": scale_angular(base, 0.75), "final": base, "reference": ref}
     return BenchConfig("quick", 32, 16, 48, 24, ("noon",), ref, base, presets, wavelengths=(81, 41, 11, "rgb3"),
                        orders=(1, 2, 4, "tolerance"), layers=(4, "smooth"), angular_grid=(0.5, 1.0),
-                       phase=("mie", "hg", "dhg"), mc_samples=(8, 32), mc_wavelength_step_nm=80.0, repeat=False)
+                       phase=("mie", "hg", "dhg"), geometry=("columns0", "no-aureole"), mc_samples=(8, 32), mc_wavelength_step_nm=80.0, repeat=False)
 
 
 # ----------------------------------------------------------------------------- inputs
@@ -528,6 +533,11 @@ def _variant(cfg: BenchConfig, knob, value):
         return base_profile(wl81), scale_angular(s, float(value)), "wl81"
     if knob == "phase":
         return _fitted(str(value)), s, "wl81" + ("" if value == "mie" else f"-{value}")
+    if knob == "geometry":
+        value = check_choice("geometry", value, cfg.geometry)
+        if value == "no-aureole":
+            return base_profile(wl81), replace(s, peak_aureole=False), "wl81"
+        return base_profile(wl81), replace(s, spherical_orders=int(value[len("columns"):])), "wl81"
     raise SkymodelInputError("knob", knob, "one of: " + ", ".join(KNOBS))
 
 

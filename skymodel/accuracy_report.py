@@ -20,7 +20,7 @@ TARGETS = {"preview": {"radiance_rel_mean": 0.02, "time_s": 10.0},
            "final": {"radiance_rel_mean": 0.005, "time_s": 60.0, "peak_memory_mb": 2048.0}}
 
 _KNOB_STYLE = {"wavelengths": ("o", "C0"), "orders": ("s", "C1"), "layers": ("^", "C2"), "angular_grid": ("D", "C3"),
-               "phase": ("v", "C4"), "mc_samples": ("x", "C5"), "preset": ("*", "k")}
+               "phase": ("v", "C4"), "geometry": ("P", "C6"), "mc_samples": ("x", "C5"), "preset": ("*", "k")}
 
 
 def write_json(result: dict, path: str) -> None:
