@@ -25,6 +25,7 @@ import os
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 
 import numpy as np
 
@@ -64,16 +65,53 @@ def profile_for(aerosol, aod):
     return Atmosphere(location=aerosol, month=6, aod550=aod).optical_profile(BANDS_NM)
 
 
+#: the marcher as it was before the spherical transport and the peak aureole (revision
+#: 3e8cb1c): independent columns for every order, delta-M peak light beyond single
+#: scattering left out
+BEFORE = replace(CONVERGED, spherical_orders=0, peak_aureole=False)
+#: MC paths per chunk when a scene's MC is traced in chunks (each chunk its own seed)
+CHUNK_PATHS = 100_000
+
+
+def mc_path(mc_dir, aerosol, elev):
+    return os.path.join(mc_dir, f"mc_{aerosol}_{elev:g}.npz")
+
+
+def trace_scene_mc(prof, aerosol, elev, n_paths, seed, mc_dir=None):
+    """(mean, stderr, paths, seconds) of the MC for one scene; with ``mc_dir`` a stored
+    run is read from (or a new one written to) ``mc_<aerosol>_<elev>.npz``, so that the
+    expensive tracing is done once and the marcher can be re-measured against it. Stored
+    runs are averages of chunks of :data:`CHUNK_PATHS` paths with seeds 1000, 1001, ..."""
+    if mc_dir and os.path.exists(mc_path(mc_dir, aerosol, elev)):
+        with np.load(mc_path(mc_dir, aerosol, elev)) as z:
+            return z["mean"], z["se"], int(z["chunks"]) * int(z["chunk"]), float(z["time_s"]) if "time_s" in z else float("nan")
+    d = view_directions()
+    if n_paths <= CHUNK_PATHS:
+        mc = trace_radiance(prof, d, elev, SUN_AZIMUTH, n_paths=n_paths, seed=seed)
+        mean, se, chunks, chunk, secs = mc.radiance, mc.stderr, 1, n_paths, mc.time_s
+    else:
+        chunks, chunk = int(np.ceil(n_paths / CHUNK_PATHS)), CHUNK_PATHS
+        runs = [trace_radiance(prof, d, elev, SUN_AZIMUTH, n_paths=chunk, seed=1000 + k) for k in range(chunks)]
+        mean = np.mean([r.radiance for r in runs], axis=0)
+        se = np.sqrt(np.sum([r.stderr**2 for r in runs], axis=0)) / chunks
+        secs = float(sum(r.time_s for r in runs))
+    if mc_dir:
+        os.makedirs(mc_dir, exist_ok=True)
+        np.savez(mc_path(mc_dir, aerosol, elev), mean=mean, se=se, chunks=chunks, chunk=chunk, time_s=secs)
+    return mean, se, chunks * chunk, secs
+
+
 def run_scene(args):
-    aerosol, aod, elev, n_paths, seed = args
+    aerosol, aod, elev, n_paths, seed, mc_dir = args
     prof = profile_for(aerosol, aod)
     d = view_directions()
     t = time.perf_counter()
     m = SkyMarcher(prof, elev, SUN_AZIMUTH, 0.0, CONVERGED).radiance(d).radiance
     t_m = time.perf_counter() - t
-    mc = trace_radiance(prof, d, elev, SUN_AZIMUTH, n_paths=n_paths, seed=seed)
-    return dict(aerosol=aerosol, aod550=float(prof.metadata["aod550"]), elev=elev, marcher=m, mc=mc.radiance,
-                stderr=mc.stderr, n_paths=n_paths, t_marcher=t_m, t_mc=mc.time_s)
+    before = SkyMarcher(prof, elev, SUN_AZIMUTH, 0.0, BEFORE).radiance(d).radiance
+    mean, se, paths, t_mc = trace_scene_mc(prof, aerosol, elev, n_paths, seed, mc_dir)
+    return dict(aerosol=aerosol, aod550=float(prof.metadata["aod550"]), elev=elev, marcher=m, before=before, mc=mean,
+                stderr=se, n_paths=paths, t_marcher=t_m, t_mc=t_mc)
 
 
 def twilight_check(n_paths, seed=7):
@@ -123,12 +161,13 @@ def main(argv=None):
     ap.add_argument("--paths-twilight", type=int, default=60_000, help="MC paths per direction and band, sun < 0")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-twilight-check", dest="twilight_check", action="store_false")
+    ap.add_argument("--mc-dir", default=None, help="store each scene's MC here (mc_<aerosol>_<elev>.npz) and reuse it")
     ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "..", "docs", "accuracy.md"))
     a = ap.parse_args(argv)
     if a.quick:
         a.paths_day, a.paths_twilight = 2000, 4000
     t0 = time.perf_counter()
-    jobs = [(aer, aod, el, a.paths_twilight if el < 0 else a.paths_day, 100 + k)
+    jobs = [(aer, aod, el, a.paths_twilight if el < 0 else a.paths_day, 100 + k, a.mc_dir)
             for k, ((aer, aod), el) in enumerate((x, e) for x in AEROSOLS for e in SUN_ELEVATIONS)]
     jobs.sort(key=lambda j: -j[3])  # the long twilight runs first
     with ProcessPoolExecutor(max_workers=max(1, a.workers)) as pool:
@@ -147,8 +186,11 @@ def main(argv=None):
         f"{', '.join(f'{b:g}' for b in BANDS_NM)} nm (both estimators see the same monochromatic profile per band); "
         f"observer on the ground, sun azimuth {SUN_AZIMUTH:g} deg, ground albedo of the location. Marcher: "
         f"`MarchSettings(exact=True, view_steps=128, table_altitudes=32, table_mu=32, table_phi=12, table_mus=24, "
-        f"table_steps=64, sun tables 128 x 256 x 256)`. MC: {a.paths_day} paths per direction and band with the sun "
-        f"up, {a.paths_twilight} at -4 deg (`trace_radiance`, all orders, seeds fixed).",
+        f"table_steps=64, sun tables 128 x 256 x 256)` with the defaults for the rest (spherical transport of "
+        f"orders 1-2, peak aureole on); *before* is the same without them (`spherical_orders=0, "
+        f"peak_aureole=False`, the marcher of revision 3e8cb1c). MC: `trace_radiance`, all orders, seeds fixed; "
+        f"paths per direction and band in the last table"
+        + (f" (stored runs from `{a.mc_dir}` where present)" if a.mc_dir else "") + ".",
         "",
         "Columns: view = zenith angle / azimuth from the sun (deg); *mean* and *worst* = marcher / MC - 1 "
         "over the bands (%); *MC se* = the tracer's relative standard error (%, mean over the bands); "
@@ -161,16 +203,20 @@ def main(argv=None):
     for res in results:
         rows, rel, se, z = scene_rows(res)
         lines += rows
+        rel_b = res["before"] / res["mc"] - 1.0
         summary.append((res["aerosol"], res["elev"], float(np.median(np.abs(rel))), float(np.max(np.abs(rel))),
-                        float(np.median(se)), int(np.sum(np.abs(z) > 3)), rel.size, res["t_marcher"], res["t_mc"]))
-    lines += ["", "Per scene (all directions and bands): median and largest |marcher / MC - 1|, median MC "
-              "standard error, entries beyond 3 standard errors, and the time each estimator took.", "",
-              "| aerosol | sun (deg) | median abs (%) | max abs (%) | MC se median (%) | > 3 se "
-              "| marcher (s) | MC (s) |",
-              "|---|---|---|---|---|---|---|---|"]
-    for aer, el, med, mx, se, nz, n, tm, tmc in summary:
-        lines.append(f"| {aer} | {el:g} | {100 * med:.1f} | {100 * mx:.1f} | {100 * se:.1f} | {nz}/{n} | "
-                     f"{tm:.1f} | {tmc:.0f} |")
+                        float(np.median(np.abs(rel_b))), float(np.max(np.abs(rel_b))),
+                        float(np.median(se)), int(np.sum(np.abs(z) > 3)), rel.size, res["n_paths"], res["t_marcher"],
+                        res["t_mc"]))
+    lines += ["", "Per scene (all directions and bands): median and largest |marcher / MC - 1|, now and *before* "
+              "(see above), median MC standard error, entries beyond 3 standard errors (now), MC paths per "
+              "direction and band, and the time each estimator took (MC: summed over its chunks).", "",
+              "| aerosol | sun (deg) | median abs (%) | max abs (%) | before: median / max (%) | MC se median (%) "
+              "| > 3 se | MC paths | marcher (s) | MC (s) |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
+    for aer, el, med, mx, med_b, mx_b, se, nz, n, paths, tm, tmc in summary:
+        lines.append(f"| {aer} | {el:g} | {100 * med:.1f} | {100 * mx:.1f} | {100 * med_b:.1f} / {100 * mx_b:.1f} | "
+                     f"{100 * se:.1f} | {nz}/{n} | {paths} | {tm:.1f} | {'—' if not np.isfinite(tmc) else f'{tmc:.0f}'} |")
     if tw is not None:
         mc, out = tw
         lines += ["", "### Twilight: sun-cosine interpolation of the multiple-scattering table", "",

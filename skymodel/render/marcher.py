@@ -19,7 +19,11 @@ For a view ray from the observer O in direction v (looking along v) the radiance
   delta-M scaled transmittance for consistency with the solver. Because J_ms / E_sun is
   smooth in wavelength it is solved at a few wavelengths, interpolated, and multiplied
   by the solar spectrum on the full grid;
-* E_ground = direct sun (E_sun T_sun V cos) + diffuse sky irradiance from the solver.
+* E_ground = direct sun (E_sun T_sun V cos) + diffuse sky irradiance from the solver;
+* the peak aureole: sunlight scattered two or more times inside the aerosols' truncated
+  forward peaks, which delta-M leaves out of the solver, added per point of the ray in
+  the small-angle approximation (:mod:`skymodel.render.aureole`,
+  ``MarchSettings.peak_aureole``); it is counted in ``multiple``.
 
 Single scattering and the ground are evaluated for every direction at every wavelength;
 the multiple-scattering part is gathered on a grid of view directions (zenith angle x
@@ -317,36 +321,37 @@ class SkyMarcher:
         tau = np.concatenate([[0.0], np.geomspace(0.005, AUREOLE_MAX_PEAK_TAU, 47)])
         return theta, tau, machine.correction_table(q, tau, theta)
 
-    def _aureole_gather(self, cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s):
+    def _aureole_gather(self, cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s, block: int = 256):
         """Integral along view rays (C, S) of the peak light left out by delta-M:
         sigma_peak E_sun T*_sun T*_view C(theta, tau_peak) dt, (C, n_wl); tau_peak is the
-        peak optical depth of the sun path to the point plus the view path from it."""
+        peak optical depth of the sun path to the point plus the view path from it.
+        Directions are taken ``block`` at a time (memory ~ block * S * n_wl * 8 B * 8)."""
         theta_g, tau_g, table = self._aureole
         theta = np.arccos(np.clip(cos_theta, -1.0, 1.0))
-        out = np.zeros((cos_theta.size, ext.shape[-1]))
+        n_wl = ext.shape[-1]
+        out = np.zeros((cos_theta.size, n_wl))
         near = np.nonzero(theta < theta_g[-1])[0]
-        if near.size == 0:
-            return out
-        sig_pk = np.maximum(ext[near] - ext_s[near], 0.0)  # peak scattering, m^-1
-        tiny = 1e-300
-        tau_sun = np.log(np.maximum(t_sun_s[near], tiny) / np.maximum(t_sun[near], tiny))
-        step = sig_pk * dt[near][..., None]
-        tau = np.clip(tau_sun + np.cumsum(step, axis=1) - 0.5 * step, 0.0, tau_g[-1])
-        x = theta[near] / theta_g[-1] * (theta_g.size - 1)
-        i = np.clip(x.astype(int), 0, theta_g.size - 2)
-        fi = np.clip(x - i, 0.0, 1.0)[:, None, None]
-        j = np.clip(np.searchsorted(tau_g, tau, side="right") - 1, 0, tau_g.size - 2)
-        fj = (tau - tau_g[j]) / (tau_g[j + 1] - tau_g[j])
-        w_idx = np.arange(ext.shape[-1])
-        n_tau, n_wl = tau_g.size, ext.shape[-1]
+        n_tau = tau_g.size
         flat = table.reshape(-1)
-
-        def at(ii, jj):
-            return flat[(ii[:, None, None] * n_tau + jj) * n_wl + w_idx]
-
-        c = ((at(i, j) * (1 - fj) + at(i, j + 1) * fj) * (1 - fi)
-             + (at(i + 1, j) * (1 - fj) + at(i + 1, j + 1) * fj) * fi)
-        out[near] = (sig_pk * t_sun_s[near] * trans_s[near] * c * dt[near][..., None]).sum(axis=1)
+        w_idx = np.arange(n_wl)
+        tiny = 1e-300
+        for k in range(0, near.size, block):
+            sel = near[k:k + block]
+            sig_pk = np.maximum(ext[sel] - ext_s[sel], 0.0)  # peak scattering, m^-1
+            step = sig_pk * dt[sel][..., None]
+            tau = np.log(np.maximum(t_sun_s[sel], tiny) / np.maximum(t_sun[sel], tiny))  # sun path
+            tau += np.cumsum(step, axis=1) - 0.5 * step  # + view path
+            np.clip(tau, 0.0, tau_g[-1], out=tau)
+            x = theta[sel] / theta_g[-1] * (theta_g.size - 1)
+            i = np.clip(x.astype(int), 0, theta_g.size - 2)
+            fi = np.clip(x - i, 0.0, 1.0)[:, None, None]
+            j = np.clip(np.searchsorted(tau_g, tau, side="right") - 1, 0, n_tau - 2)
+            fj = (tau - tau_g[j]) / (tau_g[j + 1] - tau_g[j])
+            base = (i[:, None, None] * n_tau + j) * n_wl + w_idx  # table index of (theta_i, tau_j, wavelength)
+            lo = flat[base] * (1 - fj) + flat[base + n_wl] * fj
+            hi = flat[base + n_tau * n_wl] * (1 - fj) + flat[base + (n_tau + 1) * n_wl] * fj
+            c = lo * (1 - fi) + hi * fi
+            out[sel] = (step * t_sun_s[sel] * trans_s[sel] * c).sum(axis=1)
         return out * self.profile.solar_irradiance
 
     # ---------------------------------------------------------------- public
