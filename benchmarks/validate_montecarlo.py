@@ -86,7 +86,7 @@ def trace_scene_mc(prof, aerosol, elev, n_paths, seed, mc_dir=None):
         with np.load(mc_path(mc_dir, aerosol, elev)) as z:
             return z["mean"], z["se"], int(z["chunks"]) * int(z["chunk"]), float(z["time_s"]) if "time_s" in z else float("nan")
     d = view_directions()
-    if n_paths <= CHUNK_PATHS:
+    if n_paths < CHUNK_PATHS:
         mc = trace_radiance(prof, d, elev, SUN_AZIMUTH, n_paths=n_paths, seed=seed)
         mean, se, chunks, chunk, secs = mc.radiance, mc.stderr, 1, n_paths, mc.time_s
     else:
