@@ -17,3 +17,20 @@ def cumulative_trapezoid(y, x, axis=0):
     from scipy.integrate import cumulative_trapezoid as ct
 
     return ct(y, x, axis=axis, initial=0.0)
+
+
+def linear_interp_matrix(src, dst) -> np.ndarray:
+    """Matrix W (n_src, n_dst) of linear interpolation from nodes ``src`` (ascending) to
+    points ``dst`` (clamped to the end nodes): values on ``dst`` = values on ``src`` @ W.
+    A single node is copied everywhere."""
+    src = np.asarray(src, float)
+    dst = np.asarray(dst, float)
+    w = np.zeros((src.size, dst.size))
+    if src.size == 1:
+        w[0] = 1.0
+        return w
+    i = np.clip(np.searchsorted(src, dst, side="right") - 1, 0, src.size - 2)
+    f = np.clip((dst - src[i]) / (src[i + 1] - src[i]), 0.0, 1.0)
+    w[i, np.arange(dst.size)] += 1 - f
+    w[i + 1, np.arange(dst.size)] += f
+    return w

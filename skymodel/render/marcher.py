@@ -39,6 +39,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import SkymodelInputError, check_finite, check_range
+from ..numerics import linear_interp_matrix
 from ..profile import LayeredProfile, OpticalProfile
 from .medium import evaluate_many, factor_medium, march_samples
 from .multiple_scattering import MultipleScatteringField, solve_multiple_scattering
@@ -100,16 +101,8 @@ class SkyRadiance:
 
 def profile_at_wavelengths(profile, wavelengths_nm):
     """The same medium on another wavelength grid (linear interpolation in wavelength)."""
-    src = profile.wavelengths_nm
     dst = np.asarray(wavelengths_nm, dtype=float)
-    i = np.clip(np.searchsorted(src, dst, side="right") - 1, 0, max(src.size - 2, 0))
-    if src.size == 1:
-        w = np.ones((1, dst.size))
-    else:
-        f = np.clip((dst - src[i]) / (src[i + 1] - src[i]), 0.0, 1.0)
-        w = np.zeros((src.size, dst.size))
-        w[i, np.arange(dst.size)] += 1 - f
-        w[i + 1, np.arange(dst.size)] += f
+    w = linear_interp_matrix(profile.wavelengths_nm, dst)
 
     def tr(a):
         return np.asarray(a) @ w
@@ -120,21 +113,6 @@ def profile_at_wavelengths(profile, wavelengths_nm):
                    ozone_absorption=tr(profile.ozone_absorption),
                    aerosol_scattering_by_regime=tr(profile.aerosol_scattering_by_regime),
                    aerosol_absorption=tr(profile.aerosol_absorption))
-
-
-def _interp_matrix(src, dst):
-    """Matrix W (n_src, n_dst) of linear interpolation along the last axis."""
-    src = np.asarray(src, float)
-    dst = np.asarray(dst, float)
-    w = np.zeros((src.size, dst.size))
-    if src.size == 1:
-        w[0] = 1.0
-        return w
-    i = np.clip(np.searchsorted(src, dst, side="right") - 1, 0, src.size - 2)
-    f = np.clip((dst - src[i]) / (src[i + 1] - src[i]), 0.0, 1.0)
-    w[i, np.arange(dst.size)] += 1 - f
-    w[i + 1, np.arange(dst.size)] += f
-    return w
 
 
 def solver_wavelengths(wavelengths_nm, step_nm: float) -> np.ndarray:
@@ -187,7 +165,7 @@ class SkyMarcher:
             n_phi=s.table_phi, n_mus=s.table_mus, n_steps=s.table_steps, orders=s.orders,
             max_orders=s.max_orders, tolerance=s.order_tolerance, spherical_orders=s.spherical_orders,
             spherical_probe_step_nm=s.spherical_probe_step_nm, progress=progress)
-        self.to_full = _interp_matrix(wl_ms, profile.wavelengths_nm)
+        self.to_full = linear_interp_matrix(wl_ms, profile.wavelengths_nm)
         self._aureole = self._peak_aureole() if (s.peak_aureole and self.field.orders > 1) else None
         self.timings["multiple_scattering_s"] = time.perf_counter() - t1
         t2 = time.perf_counter()

@@ -58,6 +58,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry import altitude_grid
+from ..numerics import linear_interp_matrix
 from .medium import FactoredMedium, march_samples
 from .rays import altitude_along
 from .sun_transmittance import SUN_ANGULAR_RADIUS_RAD, SunTransmittance
@@ -286,22 +287,25 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
 
     # ---------------------------------------------------------------- first order source
     e_sun = profile.solar_irradiance  # (n_wl,)
-    hs, ms = np.meshgrid(h_nodes, mus_nodes, indexing="ij")  # (n_h, n_mus)
-    t_sun = sun_table.transmittance(hs, ms, which=1)  # (n_h, n_mus, n_wl) delta-M scaled, solver wavelengths
-    sin_s = np.sqrt(1.0 - mus_nodes**2)
-    cos_sun = mu_d[:, None] * mus_nodes[None, :] + sin_d[:, None] * sin_s[None, :] * np.cos(phi_d)[:, None]  # (n_dir, n_mus)
-    j1 = np.zeros((n_wl, n_dir, n_altitudes, n_mus))
-    ray_p = profile.rayleigh_phase(cos_sun)  # (n_dir, n_mus, n_wl)
-    j1 += np.einsum("dmw,hw,hmw->wdhm", ray_p, medium.rayleigh.at(h_nodes), t_sun)
-    for reg in range(n_reg):
-        sig = medium.aerosol_scaled[reg].at(h_nodes)
-        if np.any(sig > 0):
-            j1 += np.einsum("dmw,hw,hmw->wdhm", aerosol_phase_fn(reg)(cos_sun), sig, t_sun)
-    j1 *= e_sun[:, None, None, None]
-    j1 = j1.astype(np.float32)
-
     albedo = profile.ground_albedo  # (n_wl,)
-    e_direct_ground = (e_sun[None, :] * t_sun[0] * np.maximum(mus_nodes, 0.0)[:, None])  # (n_mus, n_wl)
+
+    def column_first_order():
+        """The first-order source J1 on the grid (sun transmittance at each node) and the
+        light the direct sun leaves on the ground, for the independent-column transport."""
+        hs, ms = np.meshgrid(h_nodes, mus_nodes, indexing="ij")  # (n_h, n_mus)
+        t_sun = sun_table.transmittance(hs, ms, which=1)  # (n_h, n_mus, n_wl) delta-M scaled, solver wavelengths
+        sin_s = np.sqrt(1.0 - mus_nodes**2)
+        cos_sun = mu_d[:, None] * mus_nodes[None, :] + sin_d[:, None] * sin_s[None, :] * np.cos(phi_d)[:, None]
+        j1 = np.zeros((n_wl, n_dir, n_altitudes, n_mus))
+        ray_p = profile.rayleigh_phase(cos_sun)  # (n_dir, n_mus, n_wl)
+        j1 += np.einsum("dmw,hw,hmw->wdhm", ray_p, medium.rayleigh.at(h_nodes), t_sun)
+        for reg in range(n_reg):
+            sig = medium.aerosol_scaled[reg].at(h_nodes)
+            if np.any(sig > 0):
+                j1 += np.einsum("dmw,hw,hmw->wdhm", aerosol_phase_fn(reg)(cos_sun), sig, t_sun)
+        j1 *= e_sun[:, None, None, None]
+        e_direct_ground = e_sun[None, :] * t_sun[0] * np.maximum(mus_nodes, 0.0)[:, None]  # (n_mus, n_wl)
+        return j1.astype(np.float32), (albedo[None, :] / np.pi * e_direct_ground).astype(np.float32)
 
     # layouts: "dir" layout (n_wl, n_dir, n_h, n_mus) with dir = j * n_phi + l;
     #          "ray" layout (n_wl, n_h * n_mu, n_phi * n_mus) with ray = i * n_mu + j
@@ -342,8 +346,7 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
             r0=r0, mu0=mu0, t=t, dt=dt, h=h, trans=trans, hits=hits, ground_t=ground_t, mus_nodes=mus_nodes,
             phi_nodes=phi_nodes, n_mu=n_mu, R=R).astype(np.float32))
     else:
-        lg = (albedo[None, :] / np.pi * e_direct_ground).astype(np.float32)
-        radiance = transport(j1, lg)
+        radiance = transport(*column_first_order())
     e_diffuse = ground_irradiance(radiance)
     sph = None
     if spherical_orders > 1:
@@ -351,7 +354,7 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
                                   dt=dt, h=h, R=R, hits=hits, ground_t=ground_t, h_nodes=h_nodes, mu_nodes=mu_nodes,
                                   phi_nodes=phi_nodes, mus_nodes=mus_nodes, wavelengths_nm=wl,
                                   probe_step_nm=spherical_probe_step_nm)
-    j_ms = np.zeros_like(j1)
+    j_ms = np.zeros((n_wl, n_dir, n_altitudes, n_mus), dtype=np.float32)
     contributions = []
     sizes = []  # per order: sum of |J_n| per wavelength
     n_done = 1
@@ -393,6 +396,16 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
                                    n_done, contributions)
 
 
+def _ray_sun_cosine(mu0, phi_nodes, mus):
+    """Cosine of the angle between a grid ray (zenith cosine ``mu0``, (rays,)) and the sun
+    for every (azimuth ``phi_nodes``, sun cosine ``mus``) pair: (rays, n_phi * n_mus),
+    azimuth-major as in the solver's ray layout."""
+    sin_s = np.sqrt(np.clip(1.0 - mus**2, 0.0, None))
+    sin0 = np.sqrt(np.clip(1.0 - mu0**2, 0.0, None))
+    return (mu0[:, None, None] * mus[None, None, :]
+            + sin0[:, None, None] * np.cos(phi_nodes)[None, :, None] * sin_s[None, None, :]).reshape(mu0.size, -1)
+
+
 def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phase, r0, mu0, t, dt, h, trans,
                            hits, ground_t, mus_nodes, phi_nodes, n_mu, R, max_elements: int = 8_000_000):
     """Radiance of light scattered once, arriving at every grid node, with the true
@@ -426,11 +439,7 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
     n_p = n_phi * n_mus
     n_wl = trans.shape[-1]
     st = sun_table
-    sin_s = np.sqrt(np.clip(1.0 - mus_nodes**2, 0.0, None))
-    sin0 = np.sqrt(np.clip(1.0 - mu0**2, 0.0, None))
-    # cosine of the scattering angle per ray and (phi, sun) node: (rays, n_phi * n_mus)
-    cs = (mu0[:, None, None] * mus_nodes[None, None, :]
-          + sin0[:, None, None] * np.cos(phi_nodes)[None, :, None] * sin_s[None, None, :]).reshape(n_rays, n_p)
+    cs = _ray_sun_cosine(mu0, phi_nodes, mus_nodes)  # cosine of the scattering angle, (rays, n_phi * n_mus)
     # phase of every species at the scattering angle, which depends on (mu0, phi, mu_s)
     # only: the rays of one altitude share it (ray index = altitude * n_mu + mu index)
     phases = np.stack([np.moveaxis(np.asarray(pf(cs[:n_mu]), dtype=f32), -1, 1)
@@ -447,11 +456,7 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
     ih = np.clip(np.searchsorted(st.h_nodes, hc, side="right") - 1, 0, st.h_nodes.size - 2)
     fh = ((hc - st.h_nodes[ih]) / (st.h_nodes[ih + 1] - st.h_nodes[ih])).astype(f32)
     rs = R + hc
-    rho = np.sqrt(np.clip(rs * rs - R * R, 0.0, None))
-    big_h = np.sqrt(st.r_top**2 - R * R)
-    d_min = st.r_top - rs
-    d_span = np.maximum(rho + big_h - d_min, 1e-9)
-    mu_hor = -rho / rs  # cosine of the local horizon
+    mu_hor = -np.sqrt(np.clip(1.0 - (R / rs) ** 2, 0.0, 1.0))  # cosine of the local horizon
     alpha = SUN_ANGULAR_RADIUS_RAD
     e_hor = np.arcsin(np.clip(mu_hor, -1.0, 1.0))
     mu_lo, mu_hi = np.sin(e_hor - alpha), np.sin(e_hor + alpha)  # edges of the setting disc
@@ -466,10 +471,8 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
         tab_h = (tab[ih[a:b]] * (1 - fh[a:b, :, None, None]) + tab[ih[a:b] + 1] * fh[a:b, :, None, None])
         tab_h = tab_h.reshape(-1, tab.shape[-1])
         mus_t = (r0[a:b, None, None] * mus_p + t[a:b, :, None] * cs[a:b, None, :]) / r_t[a:b, :, None]  # (c, steps, n_p)
-        mu = np.maximum(mus_t, mu_hor[a:b, :, None])
-        rr = rs[a:b, :, None]
-        dist = -rr * mu + np.sqrt(np.clip(rr * rr * (mu * mu - 1.0) + st.r_top**2, 0.0, None))
-        xs = np.clip((dist - d_min[a:b, :, None]) / d_span[a:b, :, None], 0.0, st.x_nodes[-1]) * x_scale
+        # as SunTransmittance.optical_depth: under the horizon, the grazing ray
+        xs = st._x_from_mu(rs[a:b, :, None], np.maximum(mus_t, mu_hor[a:b, :, None])) * x_scale
         j = np.clip(xs.astype(np.int64), 0, n_x - 2)
         fx = np.clip(xs - j, 0.0, 1.0).astype(f32)[..., None]
         row = (np.arange(c * n_steps).reshape(c, n_steps, 1) * n_x + j).ravel()
@@ -532,7 +535,7 @@ class _SphericalTransport:
         wl = np.asarray(wavelengths_nm, float)
         n_probe = int(np.clip(np.ceil((wl[-1] - wl[0]) / max(probe_step_nm, 1e-9)) + 1, 1, wl.size))
         self.probe = np.unique(np.round(np.linspace(0, wl.size - 1, n_probe)).astype(int))
-        self.to_all = None if self.probe.size == wl.size else _linear_weights(wl[self.probe], wl)  # (n_probe, n_wl)
+        self.to_all = None if self.probe.size == wl.size else linear_interp_matrix(wl[self.probe], wl)  # (n_probe, n_wl)
         self.n_h, self.n_mu, self.n_phi, self.n_mus = h_nodes.size, mu_nodes.size, phi_nodes.size, mus_nodes.size
         self.mus_nodes = mus_nodes
         self.sub = np.nonzero(mus_nodes <= np.sin(np.radians(max_elevation_deg)))[0]  # sun nodes corrected
@@ -545,11 +548,7 @@ class _SphericalTransport:
         self.node_w = np.stack([wh * wm for wh in (1 - fh, fh) for wm in (1 - fm, fm)], axis=-1).astype(f32)
         self.weight = np.ascontiguousarray(weight[..., self.probe], dtype=f32)  # (rays, steps, n_probe)
         mus_sub = mus_nodes[self.sub]
-        sin_s = np.sqrt(np.clip(1.0 - mus_sub**2, 0.0, None))
-        sin0 = np.sqrt(np.clip(1.0 - mu0**2, 0.0, None))
-        # cosine of the angle between ray and sun per ray and output pair, (rays, n_p)
-        self.cs = (mu0[:, None, None] * mus_sub[None, None, :]
-                   + sin0[:, None, None] * np.cos(phi_nodes)[None, :, None] * sin_s[None, None, :]).reshape(n_rays, -1)
+        self.cs = _ray_sun_cosine(mu0, phi_nodes, mus_sub)  # (rays, n_p)
         self.mus_p = np.tile(mus_sub, self.n_phi)
         self.r0, self.t, self.r_t = r0, t, R + h
         self.chunk = max(1, max_elements // max(1, n_steps * self.n_p * self.probe.size))
@@ -607,15 +606,3 @@ class _SphericalTransport:
         r = r.reshape(n_wl, self.n_h, self.n_mu, self.n_phi, self.sub.size).transpose(0, 2, 3, 1, 4)
         ratio[..., self.sub] = r
         return ratio.reshape(n_wl, -1, self.n_h, self.n_mus)
-
-
-def _linear_weights(src, dst):
-    """(n_src, n_dst) weights of linear interpolation from ``src`` to ``dst`` (clamped)."""
-    w = np.zeros((src.size, dst.size))
-    if src.size == 1:
-        w[0] = 1.0
-        return w
-    i, f = _axis(src, dst)
-    w[i, np.arange(dst.size)] += 1.0 - f
-    w[i + 1, np.arange(dst.size)] += f
-    return w
