@@ -22,8 +22,9 @@ predicted error and time, **read from measured tables**, never guessed:
   it exists: its ``wavelengths`` rows replace the effect table's spectral rows (and add
   5 nm), its ``orders`` rows add the counts the effect table lacks (5..8), its ``layers``
   rows replace the effect table's counts up to :data:`MAX_LAYERS`; its errors are against
-  its own converged reference (so they include its baseline's error: the predictions err
-  high), and its ``final`` preset time is the time scale.
+  its own converged reference (so they include its baseline's error: the predictions should
+  err high; docs/planner.md's proof says where they do not), and its ``final`` preset time is
+  the time scale.
   It measures three scenes; values between them are interpolated linearly in the sun
   elevation of the scenes (``scenes[name].sun_elevation_deg``), and held constant beyond
   the first and last scene.
