@@ -74,6 +74,12 @@ class MarchSettings:
     grid_zenith_ground: int = 32  # ... and below it
     grid_azimuth: int = 61  # azimuth-from-the-sun nodes over 0..180 degrees
     sun_exact_deg: float = 8.0  # directions this close to the sun are evaluated exactly
+    # Half-angle of the forward-peak cone that delta-M cuts from the aerosol phase functions
+    # in the multiple-scattering part (the peak aureole puts back what is cut). 12 degrees
+    # suits the default tables; within about 3 degrees of a sun at the horizon, in dust, the
+    # aureole's small-angle approximation is then ~10 % low. A 3-degree cone with
+    # table_mu=64, table_phi=48 removes that at 4-5x the solver time (docs/accuracy.md,
+    # "The sunward horizon at sunset"); a narrow cone with coarse tables is worse than 12.
     delta_m_cutoff_deg: float = 12.0
     spherical_orders: int = 2  # transports with each point's own sun angle (0 = independent columns)
     spherical_probe_step_nm: float = 100.0  # wavelength spacing of the spherical correction (orders >= 2)
