@@ -47,10 +47,15 @@ BANDS_NM = (450.0, 550.0, 650.0, 750.0)  # centres of the 10 nm bands compared
 #: toward and away from the sun, and the side.
 VIEWS = ((0.0, 0.0), (45.0, 0.0), (45.0, 180.0), (70.0, 90.0), (80.0, 0.0), (80.0, 180.0),
          (88.0, 0.0), (88.0, 180.0))
-#: converged marcher: every direction exact, larger tables than the defaults
-CONVERGED = MarchSettings(exact=True, view_steps=128, table_altitudes=32, table_mu=32, table_phi=12,
+#: converged marcher: every direction exact, larger tables than the defaults, and a
+#: narrow delta-M cone (3 degrees instead of 12) with angular tables fine enough to carry
+#: what the cone no longer cuts (zenith 64, azimuth 48 nodes, 3.75 degrees apart). With
+#: the 12-degree cone the light 2 degrees above a setting sun is left to the peak aureole's
+#: small-angle approximation, which there misses about 11 % (desert, sun at 0 degrees;
+#: docs/accuracy.md, "The sunward horizon at sunset").
+CONVERGED = MarchSettings(exact=True, view_steps=128, table_altitudes=32, table_mu=64, table_phi=48,
                           table_mus=24, table_steps=64, sun_table_altitudes=128, sun_table_x=256,
-                          sun_table_steps=256, ms_wavelength_step_nm=10.0)
+                          sun_table_steps=256, ms_wavelength_step_nm=10.0, delta_m_cutoff_deg=3.0)
 
 
 def view_directions(sun_azimuth=SUN_AZIMUTH):
@@ -65,10 +70,9 @@ def profile_for(aerosol, aod):
     return Atmosphere(location=aerosol, month=6, aod550=aod).optical_profile(BANDS_NM)
 
 
-#: the marcher as it was before the spherical transport and the peak aureole (revision
-#: 3e8cb1c): independent columns for every order, delta-M peak light beyond single
-#: scattering left out
-BEFORE = replace(CONVERGED, spherical_orders=0, peak_aureole=False)
+#: the converged marcher of the previous comparison (revision 7a3823a): the default
+#: 12-degree delta-M cone with 32 zenith and 12 azimuth nodes in the tables
+BEFORE = replace(CONVERGED, table_mu=32, table_phi=12, delta_m_cutoff_deg=12.0)
 #: MC paths per chunk when a scene's MC is traced in chunks (each chunk its own seed)
 CHUNK_PATHS = 100_000
 
@@ -185,10 +189,11 @@ def main(argv=None):
         f"Medium: `Atmosphere(location=..., month=6, aod550=...)` at the centres of the 10 nm bands "
         f"{', '.join(f'{b:g}' for b in BANDS_NM)} nm (both estimators see the same monochromatic profile per band); "
         f"observer on the ground, sun azimuth {SUN_AZIMUTH:g} deg, ground albedo of the location. Marcher: "
-        f"`MarchSettings(exact=True, view_steps=128, table_altitudes=32, table_mu=32, table_phi=12, table_mus=24, "
-        f"table_steps=64, sun tables 128 x 256 x 256)` with the defaults for the rest (spherical transport of "
-        f"orders 1-2, peak aureole on); *before* is the same without them (`spherical_orders=0, "
-        f"peak_aureole=False`, the marcher of revision 3e8cb1c). MC: `trace_radiance`, all orders, seeds fixed; "
+        f"`MarchSettings(exact=True, view_steps=128, table_altitudes=32, table_mu=64, table_phi=48, table_mus=24, "
+        f"table_steps=64, sun tables 128 x 256 x 256, delta_m_cutoff_deg=3)` with the defaults for the rest "
+        f"(spherical transport of orders 1-2, peak aureole on); *before* is the converged marcher of the previous "
+        f"comparison (revision 7a3823a): the same with the default 12-degree delta-M cone and `table_mu=32, "
+        f"table_phi=12`. MC: `trace_radiance`, all orders, seeds fixed; "
         f"paths per direction and band in the last table"
         + (f" (stored runs from `{a.mc_dir}` where present)" if a.mc_dir else "") + ".",
         "",
