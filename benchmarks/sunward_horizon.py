@@ -8,7 +8,7 @@ sun, degrees) at 450, 550, 650 and 750 nm. The marcher runs at the Monte Carlo
 comparison's converged settings (benchmarks/validate_montecarlo.py) with the cone and
 the zenith x azimuth table nodes of each row; the MC traces every order.
 
-    nice -n 10 python benchmarks/sunward_horizon.py            # prints the markdown table (about 10 min)
+    nice -n 10 python benchmarks/sunward_horizon.py            # prints the markdown table (about 15 min)
 """
 
 from __future__ import annotations

@@ -77,7 +77,7 @@ def profile_for(aerosol, aod):
 
 
 #: the converged marcher of the previous comparison (revision 7a3823a): the default
-#: 12-degree delta-M cone with 32 zenith and 12 azimuth nodes in the tables
+#: 12-degree delta-M cone with 32 zenith and 12 azimuth nodes and 32 altitudes in the tables
 BEFORE = replace(CONVERGED, table_altitudes=32, table_mu=32, table_phi=12, delta_m_cutoff_deg=12.0)
 #: MC paths per chunk when a scene's MC is traced in chunks (each chunk its own seed)
 CHUNK_PATHS = 100_000
