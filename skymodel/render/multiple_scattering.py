@@ -453,8 +453,8 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
     x_scale = (n_x - 1) / st.x_nodes[-1]
     # per sample: altitude interpolation of the table, and the geometry of the sun table
     hc = np.clip(h, st.h_nodes[0], st.h_nodes[-1])
-    ih = np.clip(np.searchsorted(st.h_nodes, hc, side="right") - 1, 0, st.h_nodes.size - 2)
-    fh = ((hc - st.h_nodes[ih]) / (st.h_nodes[ih + 1] - st.h_nodes[ih])).astype(f32)
+    ih, fh = st.altitude_weights(hc)
+    fh = fh.astype(f32)
     rs = R + hc
     mu_hor = -np.sqrt(np.clip(1.0 - (R / rs) ** 2, 0.0, 1.0))  # cosine of the local horizon
     alpha = SUN_ANGULAR_RADIUS_RAD

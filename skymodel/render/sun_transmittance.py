@@ -7,7 +7,17 @@ Bruneton & Neyret's (2008) distance parameter: with rho = sqrt(r^2 - R^2) and
 H = sqrt(r_top^2 - R^2), the distance d to the top boundary runs from r_top - r
 (looking straight up) to rho + H (the ray grazing the ground), and we take nodes evenly
 in x = (d - d_min) / (d_max - d_min). This spreads the nodes where the optical depth
-changes fastest, near the horizon.
+changes fastest, near the horizon. The altitude nodes are evenly spaced in rho (Bruneton
+2017's x_r = rho / H), and the table is interpolated linearly in rho between them. Near
+the ground rho = sqrt(2 R h) changes fastest: the horizon distance d_max grows by 40 km in
+the lowest 125 m, so at a fixed x the direction, and with a low sun the optical depth,
+changes as sqrt(h) there. Altitude nodes interpolated in h miss that: with 128 nodes
+on a stretched altitude grid (the first at 125 m) a point 35 m above the ground with the
+sun at 5 degrees got an optical depth 0.08 too small at 450 nm (rural aerosol, AOD 0.2:
+8 % too much sunlight), and the horizon toward that sun (88/0) came out 0.9-1.6 % above
+the Monte Carlo tracer's (se 0.1-0.2 %). Evenly in rho, the lowest nodes lie 6, 25, 56,
+100 m up; that optical depth error is 0.006, and 88/0 is within -0.0..+0.5 %
+(docs/accuracy.md).
 
 Directions below the local horizon (mu < -rho / r) meet the planet: the point is in the
 Earth's shadow. The sun is a disc of angular radius alpha, so near the horizon it sets
@@ -22,7 +32,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import altitude_grid
 from .medium import LowRank, march_samples
 from .rays import altitude_along
 
@@ -46,7 +55,9 @@ class SunTransmittance:
         self.R = float(ground_radius)
         self.top = float(top_altitude)
         self.r_top = self.R + self.top
-        self.h_nodes = altitude_grid(n_altitudes, self.top * (1 - 1e-9), stretch=3.0)
+        big_h = np.sqrt(self.r_top**2 - self.R**2)
+        self.rho_nodes = np.linspace(0.0, big_h, n_altitudes) * (1.0 - 1e-9)
+        self.h_nodes = np.sqrt(self.rho_nodes**2 + self.R**2) - self.R
         self.x_nodes = np.linspace(0.0, 1.0, n_x) * (1.0 - 1e-9)
         hh, xx = np.meshgrid(self.h_nodes, self.x_nodes, indexing="ij")
         mu = self._mu_from_x(hh, xx)
@@ -86,6 +97,17 @@ class SunTransmittance:
         d = self._distance_to_top(r, mu)
         return np.clip((d - d_min) / np.maximum(d_max - d_min, 1e-9), 0.0, self.x_nodes[-1])
 
+    def altitude_weights(self, altitudes_m):
+        """Index i of the node below each altitude and the weight fi of node i + 1 for
+        the table's interpolation, linear in rho = sqrt(r^2 - R^2) (see the module's
+        docstring); altitudes are clamped to the table's range."""
+        h = np.clip(np.asarray(altitudes_m, dtype=float), self.h_nodes[0], self.h_nodes[-1])
+        rho = np.sqrt(h * (2.0 * self.R + h))
+        step = self.rho_nodes[1] - self.rho_nodes[0]
+        i = np.clip((rho / step).astype(np.int64), 0, self.rho_nodes.size - 2)
+        fi = np.clip((rho - self.rho_nodes[i]) / step, 0.0, 1.0)
+        return i, fi
+
     def visible_fraction(self, altitudes_m, mu_sun):
         """Fraction of the solar disc above the local horizon (0 in the Earth's shadow;
         1 everywhere when ``earth_shadow`` is False)."""
@@ -107,8 +129,8 @@ class SunTransmittance:
         mu_h = -np.sqrt(np.clip(1.0 - (self.R / r) ** 2, 0.0, 1.0))
         mu = np.maximum(np.asarray(mu_sun, dtype=float), mu_h)
         x = self._x_from_mu(r, mu)
-        i = np.clip(np.searchsorted(self.h_nodes, h, side="right") - 1, 0, self.h_nodes.size - 2)
-        fi = ((h - self.h_nodes[i]) / (self.h_nodes[i + 1] - self.h_nodes[i]))[..., None]
+        i, fi = self.altitude_weights(h)
+        fi = fi[..., None]
         xs = x * (self.x_nodes.size - 1) / self.x_nodes[-1]
         j = np.clip(xs.astype(int), 0, self.x_nodes.size - 2)
         fj = np.clip(xs - j, 0.0, 1.0)[..., None]

@@ -1,0 +1,56 @@
+"""The table of optical depth toward the sun (skymodel.render.sun_transmittance) against
+the optical depth integrated directly along the sun ray."""
+
+import numpy as np
+import pytest
+
+from skymodel import Atmosphere
+from skymodel.render.medium import factor_medium, march_samples
+from skymodel.render.rays import altitude_along
+from skymodel.render.sun_transmittance import SunTransmittance
+
+
+@pytest.fixture(scope="module")
+def rural():
+    prof = Atmosphere(location="rural", month=6, aod550=0.2).optical_profile((450.0, 650.0))
+    return prof, factor_medium(prof)
+
+
+def _direct_optical_depth(med, R, top, h, mu, n=20000):
+    p = np.stack([np.zeros_like(h), np.zeros_like(h), R + h], axis=-1)
+    d = np.stack([np.sqrt(1 - mu * mu), np.zeros_like(mu), mu], axis=-1)
+    r = R + h
+    dist = -r * mu + np.sqrt(r * r * (mu * mu - 1) + (R + top) ** 2)
+    t, dt = march_samples(p, d, np.zeros_like(h), dist, n, R)
+    return np.einsum("psw,ps->pw", med.extinction.at(altitude_along(p, d, t, R)), dt)
+
+
+def test_low_sun_near_the_ground(rural):
+    """Sun at 5 degrees, points in the lowest kilometres (where a view ray toward the
+    horizon runs). The horizon distance grows as sqrt(h) above the ground, so the table
+    is spaced and interpolated in rho = sqrt(r^2 - R^2); interpolated in altitude on a
+    stretched grid it missed 0.08 of an optical depth of 5.1 at 35 m (450 nm)."""
+    prof, med = rural
+    R, top = prof.planet_radius_m, prof.top_altitude_m
+    h = np.array([0.0, 10.0, 35.0, 105.0, 357.0, 1118.0, 2376.0, 4273.0, 10111.0])
+    mu = np.full_like(h, np.sin(np.radians(5.0)))
+    exact = _direct_optical_depth(med, R, top, h, mu)
+    table = SunTransmittance([med.extinction], R, top, 96, 192, 160)  # MarchSettings' defaults
+    got = table.optical_depth(h, mu)
+    assert np.all(exact[:5, 0] > 4.0)  # a slant path through the aerosol layer
+    np.testing.assert_allclose(got, exact, atol=0.015)
+
+
+def test_sun_near_the_local_horizon(rural):
+    """Grazing sun rays (twilight) from 0 to 40 km: transmittance within 1 % of the
+    direct integration wherever at least 1 % of the light gets through."""
+    prof, med = rural
+    R, top = prof.planet_radius_m, prof.top_altitude_m
+    h = np.repeat([0.0, 500.0, 3000.0, 12000.0, 25000.0, 40000.0], 4)
+    mu_h = -np.sqrt(1 - (R / (R + h)) ** 2)
+    mu = mu_h + np.tile([0.002, 0.01, 0.03, 0.1], 6)
+    exact = np.exp(-_direct_optical_depth(med, R, top, h, mu))
+    got = np.exp(-SunTransmittance([med.extinction], R, top, 128, 256, 256).optical_depth(h, mu))
+    lit = exact > 0.01
+    assert lit.sum() >= 15
+    np.testing.assert_allclose(got[lit], exact[lit], rtol=0.01)
