@@ -10,9 +10,9 @@ the difference exceeds 3 standard errors.
 
 With ``--twilight-check`` it also measures, on the synthetic sky of tests/test_marcher.py
 (AOD 0.2, Henyey-Greenstein g = 0.7) at sun elevation -4 degrees, the effect of the
-sun-cosine interpolation of the multiple-scattering table (the twilight fix: geometric
-instead of linear interpolation between nodes with the sun below the horizon) by
-running the marcher both ways against one long MC run.
+sun-cosine interpolation of the multiple-scattering table (linear; geometric between
+nodes with the sun below the horizon, the first twilight fix; a cubic in log J, now) by
+running the marcher each way against one long MC run.
 
     nice -n 10 python benchmarks/validate_montecarlo.py            # writes its section of docs/accuracy.md
     nice -n 10 python benchmarks/validate_montecarlo.py --quick    # a smoke run (minutes, noisier)
@@ -125,8 +125,8 @@ def run_scene(args):
 
 
 def twilight_check(n_paths, seed=7):
-    """Marcher (linear vs geometric sun interpolation, 24 and 192 sun nodes) against
-    one MC run, synthetic AOD 0.2 sky, sun at -4 degrees."""
+    """Marcher (linear, geometric and cubic-in-log sun interpolation, 24 and 192 sun
+    nodes) against one MC run, synthetic AOD 0.2 sky, sun at -4 degrees."""
     from synthetic import synthetic_profile
 
     from skymodel.render import multiple_scattering as msm
@@ -134,16 +134,18 @@ def twilight_check(n_paths, seed=7):
     prof = synthetic_profile((450.0, 650.0), aod550=0.2)
     d = view_directions()
     mc = trace_radiance(prof, d, -4.0, SUN_AZIMUTH, n_paths=n_paths, seed=seed)
-    geometric = msm._sun_interp
+    cubic, geometric = msm._sun_interp_cubic, msm._sun_interp
+    ways = (("linear", lambda a, b, sa, sb, dx, f, below: a * (1.0 - f) + b * f),
+            ("geometric", lambda a, b, sa, sb, dx, f, below: geometric(a, b, f, below)), ("cubic", cubic))
     out = {}
     try:
-        for name, interp in (("linear", lambda a, b, f, below: a * (1.0 - f) + b * f), ("geometric", geometric)):
-            msm._sun_interp = interp
+        for name, interp in ways:
+            msm._sun_interp_cubic = interp
             for n_mus in (24, 192):
                 s = MarchSettings(exact=True, table_mus=n_mus)
                 out[(name, n_mus)] = SkyMarcher(prof, -4.0, SUN_AZIMUTH, 0.0, s).radiance(d).radiance
     finally:
-        msm._sun_interp = geometric
+        msm._sun_interp_cubic = cubic
     return mc, out
 
 
@@ -234,11 +236,12 @@ def main(argv=None):
                   "Synthetic sky of tests/test_marcher.py (AOD 0.2, HG g = 0.7, 450 and 650 nm), sun at -4 deg, "
                   f"marcher `MarchSettings(exact=True, table_mus=N)` against one MC run ({mc.n_paths} paths). "
                   "Values: marcher / MC - 1 (%) at 450 / 650 nm; last column the MC standard error (%).", "",
-                  "| view | linear, 24 | linear, 192 | geometric, 24 (now) | geometric, 192 | MC se |",
-                  "|---|---|---|---|---|---|"]
+                  "| view | linear, 24 | linear, 192 | geometric, 24 | geometric, 192 | cubic in log, 24 (now) "
+                  "| cubic in log, 192 | MC se |",
+                  "|---|---|---|---|---|---|---|---|"]
         for i, (zen, az) in enumerate(VIEWS):
             cells = []
-            for key in (("linear", 24), ("linear", 192), ("geometric", 24), ("geometric", 192)):
+            for key in [(way, n) for way in ("linear", "geometric", "cubic") for n in (24, 192)]:
                 r = out[key][i] / mc.radiance[i] - 1.0
                 cells.append(f"{fmt_pct(r[0])} / {fmt_pct(r[1])}")
             se = mc.stderr[i] / mc.radiance[i]

@@ -322,6 +322,9 @@ def test_marcher_switch_for_the_earths_shadow():
             out[el, shadow] = m.radiance(dirs).radiance
             if not shadow:
                 assert np.all(m.sun_table.visible_fraction(np.array([0.0, 1000.0]), np.array([-0.5, -0.1])) == 1.0)
-    np.testing.assert_allclose(out[30.0, False], out[30.0, True], rtol=1e-9)
+    # not bit-identical: the field's sun-angle interpolation is a cubic spline in log J,
+    # whose slopes feel (weakly) the nodes with the sun below the horizon, which the
+    # switch changes (0.04 % here, with 8 sun nodes)
+    np.testing.assert_allclose(out[30.0, False], out[30.0, True], rtol=1e-3)
     assert np.all(out[-5.0, False] >= out[-5.0, True] * (1 - 1e-9))
     assert np.any(out[-5.0, False] > out[-5.0, True] * 1.05)

@@ -1,0 +1,54 @@
+"""Interpolation of the multiple-scattering field along the sun angle
+(MultipleScatteringField.source_at): a cubic spline in log J between the sun nodes."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from skymodel import Atmosphere
+from skymodel.render.marcher import MarchSettings, SkyMarcher
+from skymodel.render.multiple_scattering import _log_slopes, _sun_interp, _sun_interp_cubic, sun_elevation_nodes
+
+
+def test_cubic_in_log_follows_a_receding_sunlit_layer():
+    """Below the horizon the sunlit air recedes upward as the square of the sun's depth,
+    so the source falls like exp(-c depth^2): log J bends down between nodes, which the
+    geometric (log-linear) form misses and the cubic in log follows."""
+    nodes = np.sin(np.radians(sun_elevation_nodes(24)))
+    truth = lambda mu: np.exp(-400.0 * np.minimum(mu, 0.0) ** 2 + 2.0 * mu)  # noqa: E731
+    x = np.sin(np.radians(np.linspace(-10.0, -0.5, 200)))
+    i = np.searchsorted(nodes, x, side="right") - 1
+    f = (x - nodes[i]) / (nodes[i + 1] - nodes[i])
+    v = truth(nodes)
+    s = _log_slopes(nodes, v)
+    cubic = _sun_interp_cubic(v[i], v[i + 1], s[i], s[i + 1], nodes[i + 1] - nodes[i], f, nodes[i + 1] <= 0)
+    geometric = _sun_interp(v[i], v[i + 1], f, nodes[i + 1] <= 0)
+    err_c = np.abs(cubic / truth(x) - 1).max()
+    err_g = np.abs(geometric / truth(x) - 1).max()
+    assert err_c < 0.01 < err_g
+    # exact at the nodes, and the fallback where a value is 0
+    np.testing.assert_allclose(_sun_interp_cubic(v[:-1], v[1:], s[:-1], s[1:], np.diff(nodes), 0.0, False), v[:-1])
+    z = v.copy()
+    z[3] = 0.0
+    sz = _log_slopes(nodes, z)
+    assert np.all(np.isnan(sz))
+    out = _sun_interp_cubic(z[2], z[3], sz[2], sz[3], nodes[3] - nodes[2], 0.5, True)
+    assert out == pytest.approx(0.5 * z[2])
+
+
+def test_twilight_field_between_sun_nodes():
+    """Rayleigh sky, sun at -4 degrees: the field read between its 24 sun nodes agrees with
+    one solved on 96 nodes (measured at these small tables, sun -6..3 degrees, the
+    lowest four altitude nodes, 88 degrees zenith toward the sun: within 0.8 % with the
+    cubic in log; the geometric form was up to 6.0 % off)."""
+    prof = Atmosphere(location="rural", month=6, aerosol="none", stratospheric_aod550=0.0).optical_profile((450.0,))
+    small = MarchSettings(exact=True, table_altitudes=12, table_mu=16, table_phi=6, table_steps=32, view_steps=32)
+    f24 = SkyMarcher(prof, -4.0, 180.0, 0.0, small).field
+    f96 = SkyMarcher(prof, -4.0, 180.0, 0.0, replace(small, table_mus=96)).field
+    mu_s = np.sin(np.radians(np.linspace(-6.0, 3.0, 37)))
+    h, mu = f24.h_nodes[:4], np.cos(np.radians(88.0))
+    hh, ms = np.meshgrid(h, mu_s, indexing="ij")
+    a = f24.source_at(hh, mu, 0.0, ms)
+    b = f96.source_at(hh, mu, 0.0, ms)
+    assert np.abs(a / b - 1).max() < 0.02
