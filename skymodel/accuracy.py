@@ -387,6 +387,21 @@ def _key(obj) -> str:
     return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
+def code_digest() -> str:
+    """Hash of the package's Python sources: part of every cache key, so that a change
+    to the renderer renders the references again instead of reusing stale ones."""
+    root = os.path.dirname(os.path.abspath(__file__))
+    h = hashlib.sha256()
+    for folder, dirs, files in sorted(os.walk(root)):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        for name in sorted(files):
+            if name.endswith(".py"):
+                h.update(os.path.relpath(os.path.join(folder, name), root).encode())
+                with open(os.path.join(folder, name), "rb") as f:
+                    h.update(f.read())
+    return h.hexdigest()[:16]
+
+
 def peak_memory_mb() -> float:
     """Peak resident memory of this process in MiB: ``VmHWM`` of /proc/self/status
     (Linux; it belongs to the current program image only, whereas ``ru_maxrss`` keeps
@@ -477,7 +492,7 @@ def preset_run(cfg: BenchConfig, scene: str, preset: str, with_sweep_camera: boo
     cams = [(cfg.preset_width, cfg.preset_height)] + ([(cfg.width, cfg.height)] if with_sweep_camera else [])
     spec = {"settings": _settings_dict(settings), "sun_elevation_deg": SCENES[scene], "cameras": cams,
             "mc": bool(with_sweep_camera), "location": LOCATION, "month": MONTH,
-            "version": 1 if preset == "__reference__" else 2}
+            "version": 1 if preset == "__reference__" else 2, "code": code_digest()}
     key = _key(spec)
     d = cache_dir()
     os.makedirs(d, exist_ok=True)
