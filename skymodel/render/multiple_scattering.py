@@ -220,7 +220,9 @@ def _sun_interp(a, b, f, below):
     sun elevation -4 degrees (synthetic AOD 0.2 sky, 24 sun nodes): linear interpolation
     put the multiple-scattering radiance of the anti-sun horizon 25 % above its
     value with 192 nodes; geometric interpolation is within about 3 % of it at 24 nodes.
-    (The logarithms are taken only where they are needed.)"""
+    Now the fallback of :func:`_sun_interp_cubic` where a value is <= 0 (the cubic in
+    log, :meth:`MultipleScatteringField.source_at`, is closer still). (The logarithms
+    are taken only where needed.)"""
     out = a * (1.0 - f) + b * f
     pos = np.broadcast_to(below, out.shape) & (a > 0.0) & (b > 0.0)
     if np.any(pos):
