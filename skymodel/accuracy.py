@@ -762,6 +762,25 @@ def merge_results(old: dict, new: dict) -> dict:
     return out
 
 
+def merge_parts(parts: list[dict]) -> dict:
+    """One measured table from runs restricted with --scenes/--knobs (for example one
+    process per scene, run in parallel): the first part is the base, each later one
+    replaces the rows and presets it measured (:func:`merge_results`). Every part is
+    listed under ``partial_runs`` with its command and time; the table's command is the
+    plain ``skymodel bench accuracy``."""
+    if not parts:
+        raise ValueError("merge: give at least one part (a measured-table JSON)")
+    first = parts[0]
+    out = dict(first, command="skymodel bench accuracy", total_s=first["total_s"],
+               partial_runs=[{"command": first["command"], "date": first["date"], "total_s": first["total_s"]}])
+    for part in parts[1:]:
+        if part.get("config") != first.get("config") or part.get("camera") != first.get("camera"):
+            raise ValueError(f"merge: part {part.get('command')!r} was measured with another configuration "
+                             "than the first part (full and --quick runs do not mix)")
+        out = merge_results(out, part)
+    return out
+
+
 def add_bench_command(sub) -> None:
     """Register ``skymodel bench accuracy`` on the CLI's subparsers."""
     p = sub.add_parser("bench", help="benchmarks: what accuracy costs in time")
@@ -774,6 +793,9 @@ def add_bench_command(sub) -> None:
                                                 "--quick: out/accuracy-quick/measured.json)")
     a.add_argument("--knobs", default=None, help="comma-separated subset of: " + ", ".join(KNOBS))
     a.add_argument("--scenes", default=None, help="comma-separated subset of: " + ", ".join(SCENES))
+    a.add_argument("--merge", nargs="+", metavar="PART_JSON", default=None,
+                   help="render nothing: merge the measured tables of restricted runs (e.g. one per scene run in "
+                        "parallel, then --knobs preset alone) in this order into --json and --out")
     a.set_defaults(func=_cmd_bench_accuracy)
 
 
@@ -782,6 +804,18 @@ def _cmd_bench_accuracy(args) -> int:
     out = args.out or (os.path.join(quick_dir, "accuracy.md") if args.quick else os.path.join("docs", "accuracy.md"))
     js = args.json or (os.path.join(quick_dir, "measured.json") if args.quick
                        else os.path.join("presets", "accuracy", "measured.json"))
+    if args.merge:
+        from . import accuracy_report
+
+        try:
+            result = merge_parts([_load_json(p) for p in args.merge])
+        except (OSError, ValueError, KeyError) as e:
+            print(f"skymodel bench accuracy --merge: {e}", file=sys.stderr)
+            return 2
+        accuracy_report.write_json(result, js)
+        accuracy_report.write_markdown(result, out)
+        print(f"wrote {js} and {out}", file=sys.stderr)
+        return 0
     knobs = [k.strip() for k in args.knobs.split(",")] if args.knobs else None
     scenes = [k.strip() for k in args.scenes.split(",")] if args.scenes else None
     cmd = "skymodel bench accuracy" + (" --quick" if args.quick else "") + "".join(

@@ -223,6 +223,34 @@ def test_merge_replaces_only_the_rows_remeasured(quick):
     assert accuracy.merge_results(quick, dict(part, config="full"))["config"] == "full"
 
 
+def test_cli_merges_parts_measured_in_parallel(quick, tmp_path):
+    # two parts as two processes would write them: the orders rows, then the presets
+    from skymodel.cli import main
+
+    orders = dict(quick, rows=[r for r in quick["rows"] if r["knob"] == "orders"], presets={}, total_s=2.0,
+                  command="skymodel bench accuracy --quick --knobs orders --json a.json")
+    presets = dict(quick, rows=[r for r in quick["rows"] if r["knob"] == "preset"], total_s=3.0,
+                   command="skymodel bench accuracy --quick --knobs preset --json b.json")
+    paths = []
+    for name, part in (("a.json", orders), ("b.json", presets)):
+        (tmp_path / name).write_text(json.dumps(part))
+        paths.append(str(tmp_path / name))
+    md, js = tmp_path / "acc.md", tmp_path / "m.json"
+    assert main(["bench", "accuracy", "--merge", *paths, "--out", str(md), "--json", str(js)]) == 0
+    merged = json.loads(js.read_text())
+    assert {r["knob"] for r in merged["rows"]} == {"orders", "preset"}
+    assert merged["presets"] == quick["presets"]
+    assert [r["command"] for r in merged["partial_runs"]] == [orders["command"], presets["command"]]
+    assert merged["total_s"] == 5.0 and merged["command"] == "skymodel bench accuracy"
+    assert "measured in parts: `skymodel bench accuracy --quick --knobs orders" in md.read_text()
+    # a part of another configuration is refused with a message, and nothing is written
+    (tmp_path / "c.json").write_text(json.dumps(dict(presets, config="full")))
+    js.unlink()
+    assert main(["bench", "accuracy", "--merge", paths[0], str(tmp_path / "c.json"), "--json", str(js),
+                 "--out", str(md)]) == 2
+    assert not js.exists()
+
+
 def test_checked_in_measured_table_covers_every_knob_and_scene():
     with open(MEASURED, encoding="utf-8") as f:
         result = json.load(f)
