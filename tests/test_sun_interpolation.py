@@ -52,3 +52,28 @@ def test_twilight_field_between_sun_nodes():
     a = f24.source_at(hh, mu, 0.0, ms)
     b = f96.source_at(hh, mu, 0.0, ms)
     assert np.abs(a / b - 1).max() < 0.02
+
+
+def test_field_read_in_blocks_is_the_same(monkeypatch):
+    """source_at works through its points in blocks (to bound its memory) and builds its
+    interpolation table one zenith node at a time; neither changes a value."""
+    from skymodel.render import multiple_scattering as msm
+
+    prof = Atmosphere(location="desert", month=6).optical_profile((450.0, 650.0))
+    small = MarchSettings(exact=True, table_altitudes=8, table_mu=8, table_phi=4, table_steps=16, view_steps=16)
+    field = SkyMarcher(prof, 3.0, 180.0, 0.0, small).field
+    rng = np.random.default_rng(3)
+    pts = (rng.uniform(0, 40e3, (7, 11)), rng.uniform(-1, 1, (7, 11)), rng.uniform(0, np.pi, (7, 11)),
+           rng.uniform(-0.3, 1, (7, 11)))
+    whole = field.source_at(*pts)
+    assert whole.shape == (7, 11, 2)
+    monkeypatch.setattr(msm, "_SOURCE_BLOCK", 5)
+    np.testing.assert_array_equal(field.source_at(*pts), whole)
+    # the table's J column is the solved source, and ``source`` is now a view of it
+    tab = field._interp_table()
+    assert np.shares_memory(field.source, tab)
+    src = np.moveaxis(field.source, 0, -1)
+    np.testing.assert_array_equal(tab[..., 0, :], src)
+    np.testing.assert_allclose(tab[..., 1, :], msm._log_slopes(field.mus_nodes, src, axis=3), rtol=1e-9, atol=1e-12)
+    # a scalar point gives (n_wl,)
+    assert field.source_at(1000.0, 0.5, 1.0, 0.2).shape == (2,)
