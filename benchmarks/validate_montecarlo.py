@@ -200,8 +200,8 @@ def main(argv=None):
         f"`MarchSettings(exact=True, view_steps=128, table_altitudes=48, table_mu=96, table_phi=72, table_mus=24, "
         f"table_steps=64, sun tables 128 x 256 x 256, delta_m_cutoff_deg=3)` with the defaults for the rest "
         f"(spherical transport of orders 1-2, peak aureole on); *before* is today's code at the converged "
-        f"settings of the comparison before (revision 7a3823a): the same with the default 12-degree delta-M cone and `table_mu=32, "
-        f"table_phi=12`, 32 altitudes. MC: `trace_radiance`, all orders, seeds fixed; "
+        f"settings of the comparison before (revision 7a3823a): the same with the default 12-degree delta-M "
+        f"cone and `table_mu=32, table_phi=12`, 32 altitudes. MC: `trace_radiance`, all orders, seeds fixed; "
         f"paths per direction and band in the last table"
         + (f" (stored runs from `{a.mc_dir}` where present)" if a.mc_dir else "") + ".",
         "",
