@@ -3,8 +3,9 @@ tracer (docs/accuracy.md, "Twilight, sun at -4 degrees").
 
 A Rayleigh sky (location ``rural``, month 6, no aerosol: no delta-M truncation and no
 forward peak to blur the picture), sun at -4 degrees elevation, azimuth 180, six views,
-450 and 650 nm. The marcher runs at the *before* settings of the Monte Carlo comparison
-(``BEFORE`` in benchmarks/validate_montecarlo.py: 32 altitudes, 32 x 12 table nodes)
+450 and 650 nm. The marcher runs at the Monte Carlo comparison's converged settings with
+the coarser tables of revision 7a3823a (``TABLES_7A3823A``: 32 altitudes, 32 x 12 table
+nodes, the 12-degree delta-M cone)
 with 24 to 192 sun nodes, reading the field between them log-linearly (the previous
 form) or with the cubic in log J (now). The MC traces every order, and first single
 scattering alone against the marcher's single scattering.
@@ -26,7 +27,7 @@ import numpy as np
 _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path[:0] = [_HERE, os.path.join(_HERE, "..")]
 
-from validate_montecarlo import BEFORE, CHUNK_PATHS  # noqa: E402
+from validate_montecarlo import CHUNK_PATHS, CONVERGED  # noqa: E402
 
 from skymodel import Atmosphere  # noqa: E402
 from skymodel.render import multiple_scattering as msm  # noqa: E402
@@ -38,6 +39,9 @@ WAVELENGTHS_NM = (450.0, 650.0)
 SUN_ELEVATION = -4.0
 #: (view zenith deg, azimuth from the sun deg)
 VIEWS = ((88.0, 0.0), (80.0, 0.0), (45.0, 0.0), (0.0, 0.0), (70.0, 90.0), (88.0, 180.0))
+#: the Monte Carlo comparison's converged marcher with the tables of revision 7a3823a (its
+#: *before* settings until revision 2d94d81)
+TABLES_7A3823A = replace(CONVERGED, table_altitudes=32, table_mu=32, table_phi=12, delta_m_cutoff_deg=12.0)
 #: (sun-angle interpolation, table_mus)
 ROWS = (("log-linear", 24), ("log-linear", 48), ("log-linear", 96), ("log-linear", 192), ("cubic in log", 24),
         ("cubic in log", 96))
@@ -73,7 +77,7 @@ def main(argv=None):
     d = direction_from_angles(np.array([v[0] for v in VIEWS]), 180.0 + np.array([v[1] for v in VIEWS]))
     lit = np.array([v != (88.0, 180.0) for v in VIEWS])  # 88/180 sees no single scattering (shadow)
     mc1, se1 = traced(prof, d, max(a.chunks // 2, 1), 1, a.mc_dir)
-    m1 = SkyMarcher(prof, SUN_ELEVATION, 180.0, 0.0, replace(BEFORE, orders=1)).radiance(d).radiance
+    m1 = SkyMarcher(prof, SUN_ELEVATION, 180.0, 0.0, replace(TABLES_7A3823A, orders=1)).radiance(d).radiance
     mc, se = traced(prof, d, a.chunks, 64, a.mc_dir)
     bands = " / ".join(f"{w:g}" for w in WAVELENGTHS_NM)
     views = [f"{z:g}/{r:g}" for z, r in VIEWS]
@@ -92,7 +96,7 @@ def main(argv=None):
             msm._sun_interp_cubic = cubic if way == "cubic in log" else (
                 lambda lo, hi, slo, shi, dx, f, below: geometric(lo, hi, f, below))
             t = time.perf_counter()
-            m = SkyMarcher(prof, SUN_ELEVATION, 180.0, 0.0, replace(BEFORE, table_mus=n_mus)).radiance(d).radiance
+            m = SkyMarcher(prof, SUN_ELEVATION, 180.0, 0.0, replace(TABLES_7A3823A, table_mus=n_mus)).radiance(d).radiance
             t = time.perf_counter() - t
             cells = " | ".join(f"{100 * x[0]:+.1f} / {100 * x[1]:+.1f}" for x in (m / mc - 1.0))
             print(f"| {way} | {n_mus} | {cells} | {t:.0f} |", flush=True)
