@@ -142,6 +142,39 @@ def test_agrees_with_monte_carlo(aod, elev, bias):
     assert np.all(np.abs(r - mc.radiance) < 4 * mc.stderr + bias * mc.radiance)
 
 
+#: views of the low-resolution comparison with real aerosols: zenith angle, azimuth from
+#: the sun (degrees). Not the horizon toward the sun: with the default 12-degree delta-M
+#: cone that is the peak aureole's small-angle approximation (docs/accuracy.md, "The
+#: sunward horizon at sunset"); the benchmark's converged settings cover it.
+REAL_VIEWS = ((0.0, 0.0), (45.0, 0.0), (45.0, 180.0), (80.0, 0.0), (80.0, 180.0), (88.0, 180.0))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("elev", [60.0, 20.0, 5.0, 0.0, -4.0])
+@pytest.mark.parametrize("aerosol, aod", [("rural", 0.2), ("desert", None)])
+def test_agrees_with_monte_carlo_real_aerosols(aerosol, aod, elev):
+    """Issue 3's comparison at low resolution: Mie aerosols of two types, the five sun
+    elevations, default tables, 4k MC paths (60k at twilight). Every entry within 4
+    standard errors + 1 %, and the mean over the entries within 4 of its standard errors
+    + 1 %. Measured (revision 2d94d81): the entries lie at least 3.1 points inside that
+    bound, the means at -0.3..+2.9 % (se 1.1-2.3 %). Without the spherical transport
+    (columns) the twilight means fall to -12 % (rural) and -18 % (desert), entries up to 9
+    points beyond the bound; without the peak aureole desert at 5 degrees has an entry
+    5 points beyond it. The full comparison: benchmarks/validate_montecarlo.py."""
+    from skymodel import Atmosphere
+    from skymodel.render.montecarlo import trace_radiance
+
+    prof = Atmosphere(location=aerosol, month=6, aod550=aod).optical_profile((450.0, 650.0))
+    d = dirs([v[0] for v in REAL_VIEWS], [180.0 + v[1] for v in REAL_VIEWS])
+    mc = trace_radiance(prof, d, elev, 180.0, n_paths=60_000 if elev < 0 else 4000, seed=31)
+    r = SkyMarcher(prof, elev, 180.0, 0.0, MarchSettings(exact=True)).radiance(d).radiance
+    rel = r / mc.radiance - 1.0
+    se = mc.stderr / mc.radiance
+    assert np.all(np.abs(rel) <= 4.0 * se + 0.01), np.round(100 * rel, 1)
+    mean_se = np.sqrt(np.sum(se**2)) / se.size
+    assert abs(rel.mean()) <= 4.0 * mean_se + 0.01, (rel.mean(), mean_se)
+
+
 def test_chunk_size_does_not_change_the_result():
     """Directions are marched in chunks (memory ~ chunk), the near-sun ones included: the
     chunk size changes nothing."""
