@@ -127,9 +127,10 @@ class BenchConfig:
     phase: tuple = ("mie", "hg", "dhg")
     #: how much of the sphere's geometry and of the forward peak the multiple scattering
     #: keeps: "columnsN" = transports of orders 1..N with each point's own sun angle
-    #: (0: independent columns throughout), "no-aureole" = the baseline without the
-    #: peak aureole (skymodel.render.aureole)
-    geometry: tuple = ("columns0", "columns1", "columns2", "columns3", "no-aureole")
+    #: (0: independent columns throughout; 20, the baseline's max_orders: every order, as
+    #: the Monte Carlo comparison's marcher with the sun below the horizon), "no-aureole"
+    #: = the baseline without the peak aureole (skymodel.render.aureole)
+    geometry: tuple = ("columns0", "columns1", "columns2", "columns3", "columns20", "no-aureole")
     mc_samples: tuple = (64, 256, 1024, 4096)
     mc_wavelength_step_nm: float = 20.0
     repeat: bool = True

@@ -259,7 +259,7 @@ def test_checked_in_measured_table_covers_every_knob_and_scene():
     assert result["camera"] == {"kind": "equirectangular", "width": 128, "height": 64}
     want = {"wavelengths": {81, 41, 21, 11, "rgb3"}, "orders": set(range(1, 9)) | {"tolerance"},
             "layers": {4, 8, 16, 32, 64, "smooth"}, "phase": {"mie", "hg", "dhg"},
-            "geometry": {"columns0", "columns1", "columns2", "columns3", "no-aureole"},
+            "geometry": {"columns0", "columns1", "columns2", "columns3", "columns20", "no-aureole"},
             "preset": {"preview", "final", "reference"}}
     for scene in result["scenes"]:
         for knob in accuracy.KNOBS:
