@@ -1,0 +1,65 @@
+"""Twilight in dust at the quality presets' settings: how far the presets are from the
+Monte Carlo tracer at the horizon toward a sun below it, and what every order of
+spherical transport with 48 sun nodes (the comparison's ``CONVERGED_TWILIGHT``) changes
+there (docs/accuracy.md, "Twilight, sun at -4 degrees, the horizon toward the sun").
+
+The scenes, views and bands of benchmarks/validate_montecarlo.py at sun -4 degrees, its
+MC runs (stored by ``validate_montecarlo.py --mc-dir DIR``, read here from the same DIR;
+traced here with ``--paths`` paths where absent). Each preset is marched at the views
+directly (the image's direction grid and all), as it is and with
+``spherical_orders=20, table_mus=48``.
+
+    nice -n 5 python benchmarks/twilight_presets.py --mc-dir DIR    # minutes with stored MC runs
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from dataclasses import replace
+
+import numpy as np
+
+_HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path[:0] = [_HERE, os.path.join(_HERE, "..")]
+
+from common import git_revision  # noqa: E402
+from validate_montecarlo import AEROSOLS, SUN_AZIMUTH, VIEWS, profile_for, trace_scene_mc, view_directions  # noqa: E402
+
+from skymodel.render.marcher import SkyMarcher  # noqa: E402
+from skymodel.render.sky import QUALITY  # noqa: E402
+
+SUN_ELEVATION = -4.0
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--mc-dir", default=None, help="validate_montecarlo.py's stored MC runs")
+    ap.add_argument("--paths", type=int, default=3_000_000, help="MC paths per view and band where none is stored")
+    a = ap.parse_args(argv)
+    d = view_directions()
+    views = [f"{z:g}/{r:g}" for z, r in VIEWS]
+    print(f"revision {git_revision()}; sun {SUN_ELEVATION:g} deg; marcher / MC - 1 (%), mean over the bands "
+          f"(450 nm in brackets)\n")
+    print("| aerosol | preset | " + " | ".join(views) + " | median abs | marcher (s) |")
+    print("|---|---|" + "---|" * len(views) + "---|---|")
+    for k, (aerosol, aod) in enumerate(AEROSOLS):
+        prof = profile_for(aerosol, aod)
+        mc, se, paths, _ = trace_scene_mc(prof, aerosol, SUN_ELEVATION, a.paths, 100 + k, a.mc_dir)
+        for name in ("preview", "final", "reference"):
+            for label, s in ((name, QUALITY[name]),
+                             (f"{name}, every order, 48 sun nodes", replace(QUALITY[name], spherical_orders=20, table_mus=48))):
+                t = time.perf_counter()
+                m = SkyMarcher(prof, SUN_ELEVATION, SUN_AZIMUTH, 0.0, s).radiance(d).radiance
+                secs = time.perf_counter() - t
+                rel = m / mc - 1.0
+                cells = [f"{100 * r.mean():+.1f} ({100 * r[0]:+.1f})" for r in rel]
+                print(f"| {aerosol} | {label} | " + " | ".join(cells) + f" | {100 * np.median(np.abs(rel)):.1f} | "
+                      f"{secs:.0f} |", flush=True)
+        print(f"| {aerosol} | MC se (%) | " + " | ".join(f"{100 * x.mean():.1f}" for x in se / mc) + f" | {paths} paths | |")
+
+
+if __name__ == "__main__":
+    main()
