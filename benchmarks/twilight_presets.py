@@ -26,7 +26,8 @@ _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path[:0] = [_HERE, os.path.join(_HERE, "..")]
 
 from common import git_revision  # noqa: E402
-from validate_montecarlo import AEROSOLS, SUN_AZIMUTH, VIEWS, profile_for, trace_scene_mc, view_directions  # noqa: E402
+from validate_montecarlo import (AEROSOLS, CONVERGED_TWILIGHT, SUN_AZIMUTH, VIEWS, profile_for,  # noqa: E402
+                                 trace_scene_mc, view_directions)
 
 from skymodel.render.marcher import SkyMarcher  # noqa: E402
 from skymodel.render.sky import QUALITY  # noqa: E402
@@ -50,7 +51,9 @@ def main(argv=None):
         mc, se, paths, _ = trace_scene_mc(prof, aerosol, SUN_ELEVATION, a.paths, 100 + k, a.mc_dir)
         for name in ("preview", "final", "reference"):
             for label, s in ((name, QUALITY[name]),
-                             (f"{name}, every order, 48 sun nodes", replace(QUALITY[name], spherical_orders=20, table_mus=48))):
+                             (f"{name}, every order, {CONVERGED_TWILIGHT.table_mus} sun nodes",
+                              replace(QUALITY[name], spherical_orders=CONVERGED_TWILIGHT.spherical_orders,
+                                      table_mus=CONVERGED_TWILIGHT.table_mus))):
                 t = time.perf_counter()
                 m = SkyMarcher(prof, SUN_ELEVATION, SUN_AZIMUTH, 0.0, s).radiance(d).radiance
                 secs = time.perf_counter() - t

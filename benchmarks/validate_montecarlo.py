@@ -131,10 +131,11 @@ def run_scene(args):
     settings = converged_settings(elev)
     m = SkyMarcher(prof, elev, SUN_AZIMUTH, 0.0, settings).radiance(d).radiance
     t_m = time.perf_counter() - t
-    before = m if settings == BEFORE else SkyMarcher(prof, elev, SUN_AZIMUTH, 0.0, BEFORE).radiance(d).radiance
+    before_is_now = settings == BEFORE
+    before = m if before_is_now else SkyMarcher(prof, elev, SUN_AZIMUTH, 0.0, BEFORE).radiance(d).radiance
     mean, se, paths, t_mc = trace_scene_mc(prof, aerosol, elev, n_paths, seed, mc_dir)
     return dict(aerosol=aerosol, aod550=float(prof.metadata["aod550"]), elev=elev, marcher=m, before=before,
-                before_is_now=settings == BEFORE, mc=mean,
+                before_is_now=before_is_now, mc=mean,
                 stderr=se, n_paths=paths, t_marcher=t_m, t_mc=t_mc)
 
 
@@ -180,7 +181,7 @@ def scene_rows(res):
                     f"{fmt_pct(rel[i].mean())} | {fmt_pct(rel[i, worst])} @ {BANDS_NM[worst]:g} | "
                     f"{100 * se[i].mean():.1f} | {int(np.sum(np.abs(z[i]) > 3))}/{len(BANDS_NM)} | "
                     f"{'= now' if same else fmt_pct(rel_b[i].mean())} |")
-    return rows, rel, se, z
+    return rows, rel, rel_b, se, z
 
 
 def main(argv=None):
@@ -234,9 +235,8 @@ def main(argv=None):
     ]
     summary = []
     for res in results:
-        rows, rel, se, z = scene_rows(res)
+        rows, rel, rel_b, se, z = scene_rows(res)
         lines += rows
-        rel_b = res["before"] / res["mc"] - 1.0
         summary.append((res["aerosol"], res["elev"], float(np.median(np.abs(rel))), float(np.max(np.abs(rel))),
                         float(np.median(np.abs(rel_b))), float(np.max(np.abs(rel_b))),
                         float(np.median(se)), int(np.sum(np.abs(z) > 3)), rel.size, res["n_paths"], res["t_marcher"],
