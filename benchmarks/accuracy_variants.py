@@ -15,7 +15,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from skymodel import accuracy as a
+from skymodel.validation import accuracy as a
 from skymodel.render.image_io import auto_exposure_luminance
 from skymodel.render.sky import QUALITY
 

@@ -2,7 +2,7 @@
 ``skymodel bench accuracy``: error against a converged reference and wall-clock time of
 every renderer knob on its own and of the quality presets, on three scenes.
 
-    nice -n 10 python benchmarks/bench_accuracy.py            # full: docs/accuracy.md, presets/accuracy/measured.json
+    nice -n 10 python benchmarks/bench_accuracy.py            # full: docs/accuracy.md, skymodel/data/presets/accuracy/measured.json
     python benchmarks/bench_accuracy.py --quick                # small run into out/accuracy-quick/
 
 References are cached under .cache/accuracy (or $SKYMODEL_CACHE/accuracy); delete it to

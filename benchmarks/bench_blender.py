@@ -70,7 +70,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from common import machine  # noqa: E402
 
 from blender_addon.volumetric import TO_RGB, rgb_model_profile  # noqa: E402
-from skymodel.accuracy import peak_memory_mb  # noqa: E402  (VmHWM of this process, MiB)
+from skymodel.validation.accuracy import peak_memory_mb  # noqa: E402  (VmHWM of this process, MiB)
 
 
 def _plan(location, month, elevation, azimuth=180.0, n_layers=8, mode="VOLUMETRIC"):

@@ -1,12 +1,12 @@
-"""Benchmark: vectorised Mie efficiencies (skymodel.mie) against a scalar loop over miepython.
+"""Benchmark: vectorised Mie efficiencies (skymodel.optics.mie) against a scalar loop over miepython.
 
-Target (Mie issue): ``skymodel.mie.efficiencies`` on a set of size parameters is at least
+Target (Mie issue): ``skymodel.optics.mie.efficiencies`` on a set of size parameters is at least
 10x faster than calling the oracle's scalar function once per point for the same set.
 
 Points: ``--n-points`` (2000) size parameters log-spaced over [1e-2, 1e3], one refractive
 index ``--m`` (1.5+0.01j in BH's n + ik convention; miepython gets its conjugate). Timed:
 
-* ``skymodel.mie.efficiencies(m, x)`` — one vectorised call;
+* ``skymodel.optics.mie.efficiencies(m, x)`` — one vectorised call;
 * ``miepython.efficiencies_mx(m, x_i)`` in a Python loop over the points (the target's
   baseline), and miepython's own array call ``efficiencies_mx(m_array, x)`` — both with
   miepython's default backend (pure Python/numpy; miepython 3 only uses numba when
@@ -139,7 +139,7 @@ def main(argv=None):
         _jit_worker(args)
         return
 
-    from skymodel import mie
+    from skymodel.optics import mie
 
     if os.environ.get("MIEPYTHON_USE_JIT", "0") == "1":
         ap.error("run without MIEPYTHON_USE_JIT=1; the JIT backend is timed in a subprocess")
@@ -151,7 +151,7 @@ def main(argv=None):
     jit = None if args.no_jit else _run_jit_subprocess(args)
 
     diff = float(np.max(np.abs(ours.qext - np.array(py["qext_loop"])) / ours.qext))
-    rows = [("skymodel.mie.efficiencies (one vectorised call)", ours_med, ours_lo, ours_hi)]
+    rows = [("skymodel.optics.mie.efficiencies (one vectorised call)", ours_med, ours_lo, ours_hi)]
     rows.append(("miepython.efficiencies_mx, Python loop over points (pure-Python backend)", *py["loop"]))
     rows.append(("miepython.efficiencies_mx(m_array, x) (pure-Python backend)", *py["array"]))
     if jit is not None:
@@ -176,7 +176,7 @@ def main(argv=None):
             f"{jit['import_s']:.1f} s; the first calls then took {jit['first_scalar_s'] * 1e3:.1f} ms (scalar) and "
             f"{jit['first_array_s'] * 1e3:.1f} ms (array). Import and first calls are excluded from the timings. "
             f"The compiled scalar loop takes {jit['loop'][0] / ours_med:.2f}x our time "
-            f"(skymodel.mie stays pure numpy: no numba in skymodel/).")
+            f"(skymodel.optics.mie stays pure numpy: no numba in skymodel/).")
     notes.append(f"Max relative difference of Q_ext, ours vs the miepython loop, over the {x.size} points: "
                  f"{diff:.1e} (miepython truncates the series at int(x + 4.05 x^(1/3) + 2) and uses Wiscombe's "
                  "small-sphere expansion for |m|x < 0.1).")

@@ -1,6 +1,6 @@
-"""Benchmark: the one-off build of the Mie lookup (presets/mie/mie_lookup.npz).
+"""Benchmark: the one-off build of the Mie lookup (skymodel/data/generated/mie_lookup.npz).
 
-Times :func:`skymodel.mie_lookup.build_tables` component by component on the full grids
+Times :func:`skymodel.optics.mie_lookup.build_tables` component by component on the full grids
 (81 wavelengths x 385 scattering angles) and checks that the result equals the checked-in
 table (so the time is the time of *that* table, not of a cheaper one).
 
@@ -21,7 +21,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import command_line, git_revision, machine, update_section  # noqa: E402
 
-from skymodel import mie_lookup  # noqa: E402
+from skymodel.optics import mie_lookup  # noqa: E402
 from skymodel.data import load_npz  # noqa: E402
 
 

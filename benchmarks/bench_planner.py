@@ -9,13 +9,13 @@ Two modes:
     colour difference (CIEDE2000 of the tone-mapped sky) and the luminance error, for the
     sky seen directly (by elevation band) and for the sky as lighting (illuminance on a
     horizontal surface and its colour), plus aerial perspective vs distance. ``--write``
-    stores the table in ``presets/planner/effects.json``.
+    stores the table in ``skymodel/data/presets/planner/effects.json``.
 
 ``python benchmarks/bench_planner.py --proof [--write]`` (``--doc-only``: rewrite the doc from the JSON)
     For the three example scenes of issue 5, plan with :func:`skymodel.planner.plan`,
     render the planned build and the everything-on build with the marcher, and report
     both times and the planned build's error against everything-on; ``--write`` stores
-    the result in ``presets/planner/proof.json`` and the tables in ``docs/planner.md``.
+    the result in ``skymodel/data/presets/planner/proof.json`` and the tables in ``docs/planner.md``.
 
 Conventions (the same in both modes)
 ------------------------------------
@@ -412,7 +412,7 @@ def run_proof(write: bool, width: int) -> int:
 
 
 def _accuracy_table_used():
-    """Date and command of ``presets/accuracy/measured.json`` when the planner reads it, else None."""
+    """Date and command of ``skymodel/data/presets/accuracy/measured.json`` when the planner reads it, else None."""
     from skymodel.planner import ACCURACY_PATH, load_table
 
     acc = load_table(ACCURACY_PATH)
@@ -463,7 +463,7 @@ def write_doc(meta):
     loads = [r.get("load_average_1min") for r in meta["scenes"].values() if r.get("load_average_1min") is not None]
     acc = meta.get("accuracy_table")
     if acc:
-        pred = ("The predicted error counts what the tables measure. The plans read `presets/accuracy/measured.json` "
+        pred = ("The predicted error counts what the tables measure. The plans read `skymodel/data/presets/accuracy/measured.json` "
                 f"({acc.get('date')}): its `wavelengths` rows price the spectral grid against the 5 nm (81 "
                 "wavelengths) build, its `orders` rows add 5-8 orders and its `layers` rows replace 4, 8 and 16 "
                 "shells. Its errors are taken against its own converged reference, so they include the accuracy "
@@ -474,7 +474,7 @@ def write_doc(meta):
     else:
         pred = ("The predicted error counts what the tables measure: the effect table's reference grid is 10 nm, "
                 "so the difference between a 10 nm plan and the 5 nm everything-on build is not predicted until "
-                "`presets/accuracy/measured.json` (its `wavelengths` rows) exists; the measured error includes it.")
+                "`skymodel/data/presets/accuracy/measured.json` (its `wavelengths` rows) exists; the measured error includes it.")
     under = [name for name, r in meta["scenes"].items() if r["measured_error"] > r["predicted_error"]]
     if under:
         try:
@@ -483,7 +483,7 @@ def write_doc(meta):
         except OSError:
             eff_date = "?"
         pred += (" They do not in " + ", ".join(f"`{n}`" for n in under) + ": there the measured error exceeds the "
-                 f"prediction. The effect table (`presets/planner/effects.json`, measured {eff_date}) may predate "
+                 f"prediction. The effect table (`skymodel/data/presets/planner/effects.json`, measured {eff_date}) may predate "
                  "changes to the renderer; `python benchmarks/bench_planner.py --write` re-measures it.")
     lines += ["", pred + " The prediction also counts the aerial-perspective error on objects left to the "
               "environment (product shots: objects 200 m away), which a sky render does not contain. "
@@ -505,7 +505,7 @@ def write_doc(meta):
         head = [h for h in head if all(h in row["effects"] for row in eff["rows"])]
         loads = [r["load_average_1min"] for r in eff["rows"] if r.get("load_average_1min") is not None]
         load = f"; 1-minute load average {min(loads):.1f}-{max(loads):.1f}" if loads else ""
-        t = [f"From `presets/planner/effects.json` ({eff['date']}, {eff['machine']}{load}); regenerate with:", "",
+        t = [f"From `skymodel/data/presets/planner/effects.json` ({eff['date']}, {eff['machine']}{load}); regenerate with:", "",
              "    python benchmarks/bench_planner.py --write", "",
              "Mean CIEDE2000 of switching one effect off (or simplifying it), for the sky 30-90° above the horizon "
              "/ for the light on a horizontal surface; rural aerosol, June; reference: every effect on, "

@@ -28,15 +28,16 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=21)
     args = ap.parse_args(argv)
 
-    from skymodel import atmosphere as atm_mod
-    from skymodel.atmosphere import Atmosphere
+    from skymodel.optics import atmosphere as atm_mod
+    from skymodel.optics.atmosphere import Atmosphere
     from skymodel.wavelengths import default_wavelengths
 
     wl = default_wavelengths()
     rows = []
     import functools
 
-    from skymodel import aerosols, ozone, sun
+    from skymodel import sun
+    from skymodel.optics import aerosols, ozone
 
     def clear_computed_caches():
         for mod in (aerosols, ozone, sun, atm_mod):

@@ -22,7 +22,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
-from skymodel.accuracy import atmosphere  # noqa: E402
+from skymodel.validation.accuracy import atmosphere  # noqa: E402
 from skymodel.render.marcher import SkyMarcher  # noqa: E402
 from skymodel.render.rays import direction_from_angles  # noqa: E402
 from skymodel.render.sky import QUALITY  # noqa: E402

@@ -27,7 +27,7 @@ sys.path[:0] = [_HERE, os.path.join(_HERE, "..")]
 from validate_montecarlo import BANDS_NM, CONVERGED, SUN_AZIMUTH, profile_for  # noqa: E402
 
 from skymodel.render.marcher import SkyMarcher  # noqa: E402
-from skymodel.render.montecarlo import trace_radiance  # noqa: E402
+from skymodel.validation.montecarlo import trace_radiance  # noqa: E402
 from skymodel.render.rays import direction_from_angles  # noqa: E402
 
 #: (cone in degrees, table_mu, table_phi)

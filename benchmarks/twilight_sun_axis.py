@@ -32,7 +32,7 @@ from validate_montecarlo import CHUNK_PATHS, CONVERGED  # noqa: E402
 from skymodel import Atmosphere  # noqa: E402
 from skymodel.render import multiple_scattering as msm  # noqa: E402
 from skymodel.render.marcher import SkyMarcher  # noqa: E402
-from skymodel.render.montecarlo import trace_radiance  # noqa: E402
+from skymodel.validation.montecarlo import trace_radiance  # noqa: E402
 from skymodel.render.rays import direction_from_angles  # noqa: E402
 
 WAVELENGTHS_NM = (450.0, 650.0)

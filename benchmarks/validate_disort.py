@@ -3,7 +3,7 @@
 DISORT (Stamnes et al. 1988; the C version 2.1.3 inside ``pydisort``) solves the
 plane-parallel radiative transfer equation by discrete ordinates. We hand it the same
 atmosphere the marcher renders, cut into homogeneous layers
-(:func:`skymodel.plane_parallel.plane_parallel_layers`: optical depth, single-scattering
+(:func:`skymodel.validation.plane_parallel.plane_parallel_layers`: optical depth, single-scattering
 albedo and Legendre moments per layer and wavelength), and compare the downward sky
 radiance at the ground for high suns and views at most 60 degrees from the zenith,
 where the spherical and plane-parallel geometries agree to well under 1 %.
@@ -185,7 +185,7 @@ def scattering_angles_deg(sun_elevation_deg, view_zenith_deg, relative_azimuth_d
 def moment_check(profile, n_moments: int, lo_deg: float, hi_deg: float) -> float:
     """Largest relative error of the aerosol phase tables rebuilt from ``n_moments``
     Legendre moments, over scattering angles lo..hi degrees (all regimes, wavelengths)."""
-    from skymodel.legendre import phase_from_moments, tabulated_moments
+    from skymodel.optics.legendre import phase_from_moments, tabulated_moments
 
     ang = profile.aerosol_phase_angles_deg
     chi = tabulated_moments(ang, np.moveaxis(profile.aerosol_phase, 1, 0), n_moments)
@@ -218,7 +218,7 @@ def main(argv=None):
     import pydisort
     import torch
 
-    from skymodel.plane_parallel import plane_parallel_layers
+    from skymodel.validation.plane_parallel import plane_parallel_layers
 
     t_all = time.perf_counter()
     wl = np.asarray(WAVELENGTHS_NM)
@@ -340,10 +340,10 @@ def report(args, rows, per_wl, convergence, timing, moments_rows, breakdown, t_t
         "**Method.** Each atmosphere's `OpticalProfile` is cut into "
         f"{args.layers} homogeneous layers of equal 550 nm optical depth (`OpticalProfile.layered`, which keeps "
         "every species' optical depth), and each layer is given to DISORT as optical depth, single-scattering "
-        "albedo and the Legendre moments of its mixed phase function (`skymodel.plane_parallel`): depolarised "
+        "albedo and the Legendre moments of its mixed phase function (`skymodel.validation.plane_parallel`): depolarised "
         "Rayleigh moments in closed form (chi_2 = (1 - rho) / (5 (2 + rho)), all others zero), the aerosol "
         f"tables' moments up to {args.moments} by Gauss-Legendre quadrature of the piecewise-linear table "
-        "(`skymodel.legendre`). Ozone absorbs in both codes; the ground is Lambertian with the same albedo in both. "
+        "(`skymodel.optics.legendre`). Ozone absorbs in both codes; the ground is Lambertian with the same albedo in both. "
         f"DISORT: {args.streams} streams, delta-M (always on in DISORT), the Nakajima-Tanaka intensity correction "
         "(`intensity_correction,old_intensity_correction`), `fbeam` = our top-of-atmosphere solar irradiance, "
         "radiance read at the bottom level (`usrtau`). Marcher: `render_directions`' engine at the "

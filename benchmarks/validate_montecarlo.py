@@ -35,7 +35,7 @@ sys.path[:0] = [_HERE, os.path.join(_HERE, "..", "tests"), os.path.join(_HERE, "
 from common import command_line, git_revision, machine, update_section  # noqa: E402
 
 from skymodel.render.marcher import MarchSettings, SkyMarcher  # noqa: E402
-from skymodel.render.montecarlo import trace_radiance  # noqa: E402
+from skymodel.validation.montecarlo import trace_radiance  # noqa: E402
 from skymodel.render.rays import direction_from_angles  # noqa: E402
 
 SUN_ELEVATIONS = (60.0, 20.0, 5.0, 0.0, -4.0)

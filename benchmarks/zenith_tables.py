@@ -27,7 +27,7 @@ from validate_montecarlo import CONVERGED  # noqa: E402
 
 from skymodel import Atmosphere  # noqa: E402
 from skymodel.render.marcher import SkyMarcher  # noqa: E402
-from skymodel.render.montecarlo import trace_radiance  # noqa: E402
+from skymodel.validation.montecarlo import trace_radiance  # noqa: E402
 from skymodel.render.rays import direction_from_angles  # noqa: E402
 
 WAVELENGTHS_NM = (450.0, 750.0)

@@ -160,7 +160,7 @@ def resolve(params: SkyParams) -> Plan:
         month = int(p.time_utc[1])
     if str(p.quality).lower() not in IMAGE_WIDTH:
         raise _err("quality", p.quality, "one of: " + ", ".join(IMAGE_WIDTH))
-    Atmosphere = core("atmosphere").Atmosphere
+    Atmosphere = core("optics.atmosphere").Atmosphere
     atm = Atmosphere(location=p.location, month=month, latitude=p.latitude_deg, longitude=p.longitude_deg,
                      aerosol=p.aerosol, aod550=p.aod550, turbidity=p.turbidity, stratospheric=p.stratospheric,
                      ozone_du=p.ozone_du, albedo=p.albedo)

@@ -24,9 +24,9 @@ _SUGGESTIONS: dict[str, list] = {}
 def _location_names() -> list[str]:
     if "location" not in _SUGGESTIONS:
         try:
-            names = sorted(core("atmosphere").locations())
+            names = sorted(core("optics.atmosphere").locations())
         except Exception:  # the core's data modules may be missing in a broken install
-            names = sorted(core("data").load_toml("locations.toml").get("locations", {}))
+            names = sorted(core("data").load_toml("presets/locations.toml").get("locations", {}))
         _SUGGESTIONS["location"] = names
     return _SUGGESTIONS["location"]
 
@@ -34,7 +34,7 @@ def _location_names() -> list[str]:
 def _aerosol_names() -> list[str]:
     if "aerosol" not in _SUGGESTIONS:
         try:
-            names = sorted(core("aerosols").aerosol_types())
+            names = sorted(core("optics.aerosols").aerosol_types())
         except Exception:
             names = []
         _SUGGESTIONS["aerosol"] = ["location", "none"] + names
@@ -64,7 +64,7 @@ class SkymodelSettings(bpy.types.PropertyGroup):
                ("CUSTOM", "Custom", "Your own latitude and longitude (choose an aerosol type too)")],
         default="PRESET")
     location: StringProperty(
-        name="Preset", description="Location preset (presets/locations.toml)", default="rural",
+        name="Preset", description="Location preset (skymodel/data/presets/locations.toml)", default="rural",
         search=_search_location, search_options={'SORT'})
     latitude: FloatProperty(
         name="Latitude", description="Degrees north (Custom location; the preset's otherwise)",

@@ -40,7 +40,7 @@ Media (Volume Coefficients nodes, Blender >= 4.5)
     Per layer: molecules with the RAYLEIGH phase (scatter = the layer's Rayleigh coefficient,
     absorption = its ozone + aerosol absorption), and per aerosol
     regime (troposphere, stratosphere) two Henyey-Greenstein lobes from the core's
-    double-HG fit (:func:`skymodel.phase_fit.fit_phase`, first moment kept exactly) of
+    double-HG fit (:func:`skymodel.optics.phase_fit.fit_phase`, first moment kept exactly) of
     the regime's phase table averaged over wavelength with the weights below.
 
 RGB projection
@@ -211,7 +211,7 @@ def closure_split(species, channel_weights) -> list:
 
 def regime_phase_fits(profile, weights, column_scattering_by_regime):
     """(n_regime) list of (w, g1, g2) double-HG lobes, or None for an empty regime."""
-    fit_phase = core("phase_fit").fit_phase
+    fit_phase = core("optics.phase_fit").fit_phase
     fits = []
     for r in range(profile.aerosol_phase.shape[0]):
         col = column_scattering_by_regime[r]  # (n_wl,)
@@ -309,8 +309,8 @@ def rgb_model_profile(vol):
     volumes as layers of their own, Rayleigh without depolarisation (Cycles' RAYLEIGH phase), the
     fitted aerosol lobes and the RGB extraterrestrial sun. The core's marcher renders it for a
     like-for-like comparison with Cycles (``tests/test_addon_crossval.py``, ``benchmarks/bench_blender.py``)."""
-    hg = core("phase_fit").hg
-    LayeredProfile = core("profile").LayeredProfile
+    hg = core("optics.phase_fit").hg
+    LayeredProfile = core("optics.profile").LayeredProfile
 
     lay, prof = vol["layered"], vol["profile"]
     n_regime = lay.aerosol_scattering_by_regime.shape[0]

@@ -5,16 +5,16 @@ and aerosol type (:class:`Atmosphere`, :class:`OpticalProfile`), the sun, colour
 numpy-only spectral renderer. Nothing here imports ``bpy``.
 """
 
-from .errors import SkymodelInputError
-from .profile import LayeredProfile, OpticalProfile
-from .wavelengths import as_wavelengths, default_wavelengths
+from skymodel.errors import SkymodelInputError
+from skymodel.optics.profile import LayeredProfile, OpticalProfile
+from skymodel.wavelengths import as_wavelengths, default_wavelengths
 
 __version__ = "0.1.0"
 
 
 def __getattr__(name):  # lazy: Atmosphere pulls in every data table
     if name == "Atmosphere":
-        from .atmosphere import Atmosphere
+        from skymodel.optics.atmosphere import Atmosphere
 
         return Atmosphere
     raise AttributeError(name)

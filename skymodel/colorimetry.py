@@ -18,8 +18,8 @@ import functools
 
 import numpy as np
 
-from .numerics import trapezoid
-from .wavelengths import as_wavelengths
+from skymodel.numerics import trapezoid
+from skymodel.wavelengths import as_wavelengths
 
 #: Maximum luminous efficacy of photopic vision, lm W^-1.
 K_M = 683.002
@@ -83,7 +83,7 @@ def xyz_to_rgb_matrix(space: str = "rec709") -> np.ndarray:
         m = colour.XYZ_to_RGB(np.eye(3), colour.RGB_COLOURSPACES["ACEScg"], illuminant=d65,
                               chromatic_adaptation_transform="CAT02")
         return np.asarray(m, dtype=float).T
-    from .errors import SkymodelInputError
+    from skymodel.errors import SkymodelInputError
 
     raise SkymodelInputError("colour_space", space, "one of: rec709, acescg")
 

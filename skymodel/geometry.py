@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import SkymodelInputError
+from skymodel.errors import SkymodelInputError
 
 #: Ground radius of the spherical Earth, metres.
 EARTH_RADIUS_M = 6_360_000.0

@@ -28,13 +28,13 @@ Disc
 
 Limb darkening
     :func:`limb_darkening` uses Neckel & Labs (1994, Solar Physics 153, 91): I(mu)/I(1) =
-    sum_k a_k mu^k (k = 0..5) at 30 continuum wavelengths (``presets/sun/limb_darkening.csv``),
+    sum_k a_k mu^k (k = 0..5) at 30 continuum wavelengths (``skymodel/data/sources/sun/limb_darkening.csv``),
     coefficients interpolated linearly in wavelength.
 
 Spectrum
     :func:`solar_irradiance` reads the ASTM G173-03 extraterrestrial spectrum
-    (``presets/sun/solar_spectrum_astm_g173.csv``, extracted by
-    ``presets/sun/make_solar_spectrum.py``) and returns band means: the value at each output
+    (``skymodel/data/generated/solar_spectrum_astm_g173.csv``, extracted by
+    ``skymodel/data/generated/make_solar_spectrum.py``) and returns band means: the value at each output
     wavelength is the mean of the native (0.5-1 nm) table over a band centred on it, whose width
     is the local spacing of the output grid unless given, so a coarse grid carries the averaged
     spectrum rather than samples of single Fraunhofer lines.
@@ -49,9 +49,9 @@ from datetime import date, datetime, timezone
 
 import numpy as np
 
-from .data import csv_columns
-from .errors import SkymodelInputError
-from .wavelengths import as_wavelengths
+from skymodel.data import csv_columns
+from skymodel.errors import SkymodelInputError
+from skymodel.wavelengths import as_wavelengths
 
 # ----------------------------------------------------------------------------- constants
 
@@ -78,8 +78,8 @@ STANDARD_TEMPERATURE_C = 15.0
 #: 330-830 nm, so any band up to this width centred in 380-780 nm lies inside it.
 MAX_BANDWIDTH_NM = 100.0
 
-_SOLAR_SPECTRUM_CSV = "sun/solar_spectrum_astm_g173.csv"
-_LIMB_DARKENING_CSV = "sun/limb_darkening.csv"
+_SOLAR_SPECTRUM_CSV = "generated/solar_spectrum_astm_g173.csv"
+_LIMB_DARKENING_CSV = "sources/sun/limb_darkening.csv"
 
 _J2000_UT = np.datetime64("2000-01-01T12:00:00", "us")
 _US_PER_DAY = 86_400e6

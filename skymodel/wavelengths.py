@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import SkymodelInputError
+from skymodel.errors import SkymodelInputError
 
 MIN_NM = 380.0
 MAX_NM = 780.0

@@ -4,9 +4,9 @@ Used to test the renderers independently of the data modules."""
 
 import numpy as np
 
-from skymodel import rayleigh
+from skymodel.optics import rayleigh
 from skymodel.geometry import altitude_grid
-from skymodel.profile import OpticalProfile
+from skymodel.optics.profile import OpticalProfile
 
 
 def hg_table(angles_deg, g, n_wl):

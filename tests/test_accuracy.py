@@ -1,5 +1,5 @@
 """The accuracy benchmark (skymodel bench accuracy): the quick run, its error metrics, and
-the checked-in measured table (presets/accuracy/measured.json). No timing asserts."""
+the checked-in measured table (skymodel/data/presets/accuracy/measured.json). No timing asserts."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import os
 import numpy as np
 import pytest
 
-from skymodel import accuracy
+from skymodel.validation import accuracy
 from skymodel.errors import SkymodelInputError
 from skymodel.wavelengths import default_wavelengths
 
@@ -150,7 +150,7 @@ def test_rgb_shortcut_maps_the_solar_spectrum_to_its_own_colour():
 
 def test_fitted_phase_keeps_the_asymmetry_and_normalisation():
     from skymodel.numerics import trapezoid
-    from skymodel.phase_fit import asymmetry
+    from skymodel.optics.phase_fit import asymmetry
 
     prof = accuracy.base_profile(default_wavelengths(100.0))
     assert accuracy.with_fitted_phase(prof, "mie") is prof

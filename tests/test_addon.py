@@ -142,8 +142,8 @@ def test_register_unregister_leaves_no_trace(addon):
 
 
 def test_properties_units_and_ranges(scene):
-    from skymodel import aerosols
-    from skymodel.atmosphere import locations
+    from skymodel.optics import aerosols
+    from skymodel.optics.atmosphere import locations
 
     props = bpy.types.World.bl_rna.properties["skymodel"].fixed_type.properties
     deg = math.pi / 180

@@ -1,11 +1,11 @@
-"""Aerosol types, vertical profiles, the Mie lookup and the optics per height (skymodel.aerosols)."""
+"""Aerosol types, vertical profiles, the Mie lookup and the optics per height (skymodel.optics.aerosols)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from skymodel import aerosols, mie_lookup
+from skymodel.optics import aerosols, mie_lookup
 from skymodel.data import load_npz
 from skymodel.errors import SkymodelInputError
 from skymodel.geometry import altitude_grid

@@ -112,8 +112,8 @@ def test_wavelengths_outside_the_tables_are_refused(wl):
 
 
 def test_every_location_and_type_builds_without_nan():
-    from skymodel import aerosols
-    from skymodel.atmosphere import locations
+    from skymodel.optics import aerosols
+    from skymodel.optics.atmosphere import locations
 
     for name in locations():
         prof = Atmosphere(location=name, month=4).optical_profile([380.0, 550.0, 780.0])

@@ -71,7 +71,7 @@ def test_desert_aureole_at_low_sun_agrees_with_monte_carlo():
 
     from skymodel import Atmosphere
     from skymodel.render.marcher import MarchSettings, SkyMarcher
-    from skymodel.render.montecarlo import trace_radiance
+    from skymodel.validation.montecarlo import trace_radiance
     from skymodel.render.rays import direction_from_angles
 
     prof = Atmosphere(location="desert", month=6).optical_profile([450.0, 650.0])
@@ -97,7 +97,7 @@ def test_sunward_horizon_at_sunset_needs_a_narrow_cone():
 
     from skymodel import Atmosphere
     from skymodel.render.marcher import MarchSettings, SkyMarcher
-    from skymodel.render.montecarlo import trace_radiance
+    from skymodel.validation.montecarlo import trace_radiance
     from skymodel.render.rays import direction_from_angles
 
     prof = Atmosphere(location="desert", month=6).optical_profile([650.0])

@@ -17,7 +17,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(
 from validate_disort import plane_parallel_single_scattering, run_disort, run_marcher  # noqa: E402
 
 from skymodel import Atmosphere  # noqa: E402
-from skymodel.plane_parallel import plane_parallel_layers  # noqa: E402
+from skymodel.validation.plane_parallel import plane_parallel_layers  # noqa: E402
 
 SUN_ELEVATION = np.array([40.0])
 VIEW_ZENITH = np.array([0.0, 30.0, 60.0])

@@ -24,8 +24,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from synthetic import synthetic_profile
 
-from skymodel import mie
-from skymodel.aerosols import aerosol_types
+from skymodel.optics import mie
+from skymodel.optics.aerosols import aerosol_types
 from skymodel.render.marcher import MarchSettings, SkyMarcher
 from skymodel.render.rays import atmosphere_segment, direction_from_angles
 from skymodel.render.sun_transmittance import SUN_ANGULAR_RADIUS_RAD

@@ -1,15 +1,15 @@
-"""Legendre moments of phase functions (skymodel.legendre) and the plane-parallel layers
-built from them (skymodel.plane_parallel): the input of discrete-ordinates solvers."""
+"""Legendre moments of phase functions (skymodel.optics.legendre) and the plane-parallel layers
+built from them (skymodel.validation.plane_parallel): the input of discrete-ordinates solvers."""
 
 import numpy as np
 import pytest
 
 from skymodel import Atmosphere
 from skymodel.errors import SkymodelInputError
-from skymodel.legendre import (henyey_greenstein, henyey_greenstein_moments, legendre_polynomials,
+from skymodel.optics.legendre import (henyey_greenstein, henyey_greenstein_moments, legendre_polynomials,
                                phase_from_moments, rayleigh_moments, tabulated_moments)
-from skymodel.phase_fit import asymmetry
-from skymodel.plane_parallel import plane_parallel_layers
+from skymodel.optics.phase_fit import asymmetry
+from skymodel.validation.plane_parallel import plane_parallel_layers
 
 WL = [400.0, 550.0, 700.0]
 FINE_DEG = np.linspace(0.0, 180.0, 3601)

@@ -133,7 +133,7 @@ def test_agrees_with_monte_carlo(aod, elev, bias):
     only within the MC noise (<= 2.3 %); with aerosols (HG g = 0.7, AOD 0.2) 0-5 %,
     worst near the horizon toward a low sun (the delta-M truncation of the forward peak
     inside the multiple-scattering solver): the allowance below is that bias plus 4 sigma."""
-    from skymodel.render.montecarlo import trace_radiance
+    from skymodel.validation.montecarlo import trace_radiance
 
     prof = synthetic_profile((450.0, 650.0), aod550=aod)
     d = dirs([0, 45, 70, 85, 60], [0, 0, 180, 0, 90])
@@ -162,7 +162,7 @@ def test_agrees_with_monte_carlo_real_aerosols(aerosol, aod, elev):
     points beyond the bound; without the peak aureole desert at 5 degrees has an entry
     5 points beyond it. The full comparison: benchmarks/validate_montecarlo.py."""
     from skymodel import Atmosphere
-    from skymodel.render.montecarlo import trace_radiance
+    from skymodel.validation.montecarlo import trace_radiance
 
     prof = Atmosphere(location=aerosol, month=6, aod550=aod).optical_profile((450.0, 650.0))
     d = dirs([v[0] for v in REAL_VIEWS], [180.0 + v[1] for v in REAL_VIEWS])

@@ -1,4 +1,4 @@
-"""Lorentz–Mie theory (skymodel.mie) against miepython, analytic limits and identities.
+"""Lorentz–Mie theory (skymodel.optics.mie) against miepython, analytic limits and identities.
 
 miepython is a test-only oracle. It uses m = n - ik (we use BH's m = n + ik, k >= 0), so
 every call passes ``np.conj(m)``; its amplitudes S1, S2 are then the complex conjugates of
@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 import pytest
 
-from skymodel import mie
+from skymodel.optics import mie
 from skymodel.errors import SkymodelInputError
 from skymodel.numerics import trapezoid
 
@@ -31,7 +31,7 @@ def _oracle_from_coefficients(m, x):
 
     miepython's ``efficiencies_mx`` switches to Wiscombe's small-sphere expansion when
     |m| x < 0.1. That expansion is truncated: against a 60-digit mpmath Mie series (and
-    against skymodel.mie, which agrees with it to ~1e-15) it is off by up to 1.6e-6 in
+    against skymodel.optics.mie, which agrees with it to ~1e-15) it is off by up to 1.6e-6 in
     Q_ext and 8e-7 in g for 0.03 < |m| x < 0.1 — above this test's 1e-6 tolerance. In that
     regime we therefore sum miepython's own exact coefficients (``miepython.coefficients``,
     the same series its large-sphere path uses). For real m, Q_ext = Q_sca exactly

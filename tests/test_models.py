@@ -1,7 +1,7 @@
 """The alternative sky models (skymodel.models) and `skymodel compare`.
 
 Reference numbers are recomputed here from the papers' printed formulas and constants
-(typed in again, independently of presets/models/*.toml), so a transcription error in a
+(typed in again, independently of skymodel/data/sources/models/*.toml), so a transcription error in a
 table or a formula makes a test fail."""
 
 from __future__ import annotations
@@ -171,7 +171,7 @@ def test_openspace_profiles():
     assert e.planet_radius_m == 6_377_000.0 and e.top_altitude_m == pytest.approx(70_000.0)
     assert mars.planet_radius_m == 3_386_190.0 and mars.top_altitude_m == pytest.approx(76_984.95, abs=0.1)
     # Earth's Rayleigh at sea level within 3 % of our Bucholtz cross section x standard air
-    from skymodel import rayleigh
+    from skymodel.optics import rayleigh
 
     ours = rayleigh.scattering_coefficient(np.array([0.0]), WL)[0]
     np.testing.assert_allclose(e.rayleigh_scattering[0], ours, rtol=0.03)
@@ -268,7 +268,7 @@ def test_compare_command_tiny(tmp_path, capsys):
     d = direction_from_angles(z, 180.0 + a)
     assert np.all(np.degrees(np.arccos(d @ sun_direction(30.0, 180.0))) >= 10.0)
     # the panels share ours' exposure even when ours is not drawn
-    from skymodel.compare import compare
+    from skymodel.cli.compare import compare
 
     cmp = compare(Atmosphere(location="rural", month=6), 30.0, models="cie12,preetham", size=16,
                   wavelength_step_nm=20.0)

@@ -1,4 +1,4 @@
-"""Monte Carlo reference path tracer (skymodel.render.montecarlo).
+"""Monte Carlo reference path tracer (skymodel.validation.montecarlo).
 
 The checks compare the tracer with things it does not share code with: deterministic
 quadrature of the single-scattering integral, brute-force optical depths, analytic
@@ -14,8 +14,8 @@ import pytest
 
 from skymodel.numerics import trapezoid
 from skymodel.geometry import altitude_grid
-from skymodel.profile import OpticalProfile
-from skymodel.render.montecarlo import MCResult, _Medium, trace_radiance
+from skymodel.optics.profile import OpticalProfile
+from skymodel.validation.montecarlo import MCResult, _Medium, trace_radiance
 from skymodel.render.rays import atmosphere_segment, direction_from_angles, sun_direction
 
 R_EARTH = 6_360_000.0

@@ -6,11 +6,11 @@ validation."""
 import numpy as np
 import pytest
 
-from skymodel import ozone
-from skymodel.data import csv_columns, load_csv, preset_path
+from skymodel.optics import ozone
+from skymodel.data import csv_columns, data_path, load_csv
 from skymodel.errors import SkymodelInputError
 from skymodel.geometry import altitude_grid
-from skymodel.standard_atmosphere import number_density
+from skymodel.optics.standard_atmosphere import number_density
 
 DU = 2.686763e20  # molecules m^-2
 
@@ -48,7 +48,7 @@ def test_cross_section_vs_bruneton_233K_bin_average_at_600nm():
 
 
 def test_cross_section_table_header_names_source():
-    text = preset_path(ozone.CROSS_SECTION_FILE).read_text(encoding="utf-8")
+    text = data_path(ozone.CROSS_SECTION_FILE).read_text(encoding="utf-8")
     assert "Gorshelev" in text and "Serdyuchenko" in text and "amt-7-625" in text
 
 
@@ -127,7 +127,7 @@ def test_january_vs_november_at_45N_follows_the_data():
 
 
 def test_seasonal_cycle_at_45N_matches_arosa():
-    arosa = csv_columns("ozone/arosa_monthly_total_dutsch.csv")["total_du"]
+    arosa = csv_columns("sources/ozone/arosa_monthly_total_dutsch.csv")["total_du"]
     cols = np.array([ozone.climatology_total_du(m, 45.0) for m in range(1, 13)])
     assert int(np.argmax(cols)) + 1 in (3, 4)  # spring maximum
     assert int(np.argmin(cols)) + 1 in (9, 10, 11)  # autumn minimum

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from skymodel.numerics import trapezoid
-from skymodel.phase_fit import asymmetry, fit_phase, hg
+from skymodel.optics.phase_fit import asymmetry, fit_phase, hg
 
 ANG = np.concatenate([np.linspace(0, 5, 201), np.linspace(5.1, 180, 1750)])
 MU = np.cos(np.radians(ANG))

@@ -1,6 +1,6 @@
 """The effect planner (skymodel/planner.py): the three examples of issue 5, tolerance
 monotonicity, validation, reasons, and that the predictions come from the measured tables
-(presets/planner/effects.json; the accuracy table's schema via tests/data)."""
+(skymodel/data/presets/planner/effects.json; the accuracy table's schema via tests/data)."""
 
 import copy
 import json
@@ -19,7 +19,7 @@ FIXTURE = os.path.join(os.path.dirname(__file__), "data", "accuracy_measured_fix
 @pytest.fixture(scope="module")
 def effects():
     table = load_table(EFFECTS_PATH)
-    assert table is not None, "presets/planner/effects.json is missing (benchmarks/bench_planner.py --write)"
+    assert table is not None, "skymodel/data/presets/planner/effects.json is missing (benchmarks/bench_planner.py --write)"
     return table
 
 
@@ -236,13 +236,13 @@ def test_predictions_follow_the_accuracy_table(effects, accuracy):
 
 
 def test_the_accuracy_table_in_presets_is_read_by_default(effects):
-    """With presets/accuracy/measured.json present, a plan prices its spectral grid against the
+    """With skymodel/data/presets/accuracy/measured.json present, a plan prices its spectral grid against the
     5 nm build from that table (the effect table's own reference is 10 nm, so it could not)."""
     from skymodel.planner import ACCURACY_PATH
 
     acc = load_table(ACCURACY_PATH)
     if acc is None:
-        pytest.skip("presets/accuracy/measured.json is absent (skymodel bench accuracy)")
+        pytest.skip("skymodel/data/presets/accuracy/measured.json is absent (skymodel bench accuracy)")
     for make in (product_shot, landscape, twilight):
         p = plan(make(), effects=effects)
         assert "accuracy table" in p.time_basis

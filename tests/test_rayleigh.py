@@ -4,7 +4,7 @@ depolarisation against published values, phase function normalisation."""
 import numpy as np
 import pytest
 
-from skymodel import rayleigh
+from skymodel.optics import rayleigh
 
 
 def bodhaine_eq30(wl_nm):
@@ -38,7 +38,7 @@ def test_lambda_minus_four_roughly():
 
 
 def test_phase_function_normalised():
-    from skymodel.profile import _MediumBase
+    from skymodel.optics.profile import _MediumBase
 
     m = _MediumBase(
         wavelengths_nm=np.array([400.0, 700.0]), rayleigh_depolarization=rayleigh.depolarization_factor([400.0, 700.0]),

@@ -4,7 +4,7 @@ standard's own tabulated values above 86 km."""
 import numpy as np
 import pytest
 
-from skymodel import standard_atmosphere as usa
+from skymodel.optics import standard_atmosphere as usa
 
 
 def test_against_ambiance_0_to_80_km():

@@ -11,7 +11,7 @@ import pytest
 
 from skymodel import sun
 from skymodel.errors import SkymodelInputError
-from skymodel.data import PRESETS_DIR, csv_columns
+from skymodel.data import DATA_DIR, csv_columns
 from skymodel.wavelengths import default_wavelengths
 
 try:  # test-only oracle; the limb-darkening tests run without it
@@ -245,7 +245,7 @@ def test_bad_refraction_conditions():
 
 
 def test_limb_darkening_table_is_self_consistent():
-    cols = csv_columns("sun/limb_darkening.csv")
+    cols = csv_columns("sources/sun/limb_darkening.csv")
     a = np.stack([cols[f"a{k}"] for k in range(6)], axis=1)
     integral = a @ (2.0 / (np.arange(6) + 2.0))
     # the 365.875 nm row fails both checks (see the CSV header); it is outside 380-780 nm
@@ -367,7 +367,7 @@ def test_bad_spectrum_input_names_the_parameter(kwargs, parameter):
 
 @needs_pvlib
 def test_spectrum_csv_reproduces_from_the_extraction_script(tmp_path):
-    script = PRESETS_DIR / "sun" / "make_solar_spectrum.py"
+    script = DATA_DIR / "generated" / "make_solar_spectrum.py"
     out = tmp_path / "spectrum.csv"
     subprocess.run([sys.executable, str(script), "--output", str(out)], check=True, capture_output=True)
-    assert out.read_bytes() == (PRESETS_DIR / "sun" / "solar_spectrum_astm_g173.csv").read_bytes()
+    assert out.read_bytes() == (DATA_DIR / "generated" / "solar_spectrum_astm_g173.csv").read_bytes()

@@ -36,7 +36,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import SkymodelInputError, check_range
+from skymodel.errors import SkymodelInputError, check_range
 
 KINDS = ("spectral", "xyz", "relative")
 
@@ -56,11 +56,11 @@ class SkyScene:
         check_range("sun_elevation", self.sun_elevation_deg, -90.0, 90.0, "degrees")
         check_range("sun_azimuth", self.sun_azimuth_deg, -360.0, 360.0, "degrees")
         if self.wavelengths_nm is None:
-            from ..wavelengths import default_wavelengths
+            from skymodel.wavelengths import default_wavelengths
 
             object.__setattr__(self, "wavelengths_nm", default_wavelengths(10.0))
         else:
-            from ..wavelengths import as_wavelengths
+            from skymodel.wavelengths import as_wavelengths
 
             object.__setattr__(self, "wavelengths_nm", as_wavelengths(self.wavelengths_nm))
 
@@ -70,7 +70,7 @@ class SkyScene:
 
     @property
     def sun_direction(self) -> np.ndarray:
-        from ..render.rays import sun_direction
+        from skymodel.render.rays import sun_direction
 
         return np.asarray(sun_direction(self.sun_elevation_deg, self.sun_azimuth_deg), dtype=float)
 
@@ -122,7 +122,7 @@ class ModelRadiance:
         """CIE XYZ (N, 3), radiometric scale (683 Y = cd m^-2). Relative models give the
         D65 white of luminance ``Y = L / L_zenith``."""
         if self.kind == "spectral":
-            from ..colorimetry import spectral_to_xyz
+            from skymodel.colorimetry import spectral_to_xyz
 
             return spectral_to_xyz(self.values, self.wavelengths_nm)
         if self.kind == "xyz":
@@ -135,7 +135,7 @@ class ModelRadiance:
         """Luminance in cd m^-2 (absolute models) or L / L_zenith (relative models)."""
         if self.kind == "relative":
             return np.asarray(self.values, dtype=float)
-        from ..colorimetry import K_M
+        from skymodel.colorimetry import K_M
 
         return K_M * self.xyz()[:, 1]
 
@@ -183,10 +183,10 @@ def _ensure_registered():
                       "multiple scattering, ground albedo", _ours))
     register(SkyModel("ours_single", "spectral", "skymodel's marcher, single-scattering part only "
                       "(shows the multiple-scattering share)", _ours_single))
-    from . import preetham, cie, blender_sky  # noqa: F401  (each registers its models)
+    from skymodel.models import preetham, cie, blender_sky  # noqa: F401  (each registers its models)
 
     try:
-        from . import openspace  # noqa: F401
+        from skymodel.models import openspace  # noqa: F401
     except ImportError:  # pragma: no cover - optional module
         pass
 
@@ -199,8 +199,8 @@ def _ours_result(scene: SkyScene, d):
     and directions so that ``ours`` and ``ours_single`` share one solution."""
     import hashlib
 
-    from ..render.marcher import SkyMarcher
-    from ..render.sky import quality_settings
+    from skymodel.render.marcher import SkyMarcher
+    from skymodel.render.sky import quality_settings
 
     key = (scene.atmosphere, scene.sun_elevation_deg, scene.sun_azimuth_deg, tuple(scene.wavelengths_nm.tolist()),
            str(scene.quality), hashlib.sha1(np.ascontiguousarray(d).tobytes()).hexdigest())

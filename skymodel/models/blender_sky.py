@@ -42,8 +42,8 @@ import tempfile
 
 import numpy as np
 
-from ..errors import SkymodelInputError, check_choice, check_range
-from . import ModelRadiance, SkyModel, SkyScene, register
+from skymodel.errors import SkymodelInputError, check_choice, check_range
+from skymodel.models import ModelRadiance, SkyModel, SkyScene, register
 
 SKY_TYPES = ("SINGLE_SCATTERING", "MULTIPLE_SCATTERING", "PREETHAM", "HOSEK_WILKIE")
 #: Blender's aerosol optical depth at aerosol_density 1: 2e-5 m^-1 x 1200 m x 1.11.
@@ -62,7 +62,7 @@ def bpy_available() -> bool:
 
 def blender_ozone_du() -> float:
     """Ozone column (DU) of Blender's ozone_density = 1, by our 600 nm cross section."""
-    from ..ozone import DOBSON_UNIT_M2, ozone_cross_section
+    from skymodel.optics.ozone import DOBSON_UNIT_M2, ozone_cross_section
 
     return BLENDER_OZONE_TAU600_AT_DENSITY_1 / (float(ozone_cross_section([600.0])[0]) * DOBSON_UNIT_M2)
 
@@ -188,7 +188,7 @@ def sample_equirectangular(image, zenith_rad, relative_azimuth_rad):
 
 def scene_parameters(scene: SkyScene) -> dict:
     """Blender Sky Texture settings that mirror ``scene`` (see the module doc)."""
-    from .preetham import scene_turbidity
+    from skymodel.models.preetham import scene_turbidity
 
     meta = scene.atmosphere.optical_profile([550.0]).metadata
     return {"air_density": 1.0,
@@ -210,7 +210,7 @@ def _make(sky_type):
         img = render_equirectangular(sky_type, scene.sun_elevation_deg, PANORAMA_WIDTH, **params)
         theta = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
         rgb = sample_equirectangular(img, theta, scene.relative_azimuth(d))
-        from ..colorimetry import xyz_to_rgb_matrix
+        from skymodel.colorimetry import xyz_to_rgb_matrix
 
         xyz = rgb @ np.linalg.inv(xyz_to_rgb_matrix("rec709")).T
         info = dict(params, sky_type=sky_type, panorama=img.shape[:2])

@@ -6,7 +6,7 @@
 
 Z is the zenith angle of the sky element, Z_s that of the sun and chi the angle between
 them. The 15 sky types combine six gradation groups (a, b) and six indicatrix groups
-(c, d, e) (``presets/models/cie.toml``); type 12 (V.4: a = -1, b = -0.32, c = 10,
+(c, d, e) (``skymodel/data/sources/models/cie.toml``); type 12 (V.4: a = -1, b = -0.32, c = 10,
 d = -3, e = 0.45) is the CIE standard clear sky, the usual validation reference for a
 clear-sky luminance pattern. The standard fixes neither the absolute level nor a colour:
 the registered models ``cie1`` .. ``cie15`` return ``kind = "relative"`` (L / L_z), and
@@ -19,11 +19,11 @@ import functools
 
 import numpy as np
 
-from ..data import load_toml
-from ..errors import SkymodelInputError
-from . import ModelRadiance, SkyModel, SkyScene, register
+from skymodel.data import load_toml
+from skymodel.errors import SkymodelInputError
+from skymodel.models import ModelRadiance, SkyModel, SkyScene, register
 
-TABLE = "models/cie.toml"
+TABLE = "sources/models/cie.toml"
 
 
 @functools.lru_cache(maxsize=1)

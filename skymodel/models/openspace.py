@@ -3,11 +3,11 @@
 Costa, Bock, Emmart, Hansen, Ynnerman & Silva, "Interactive Visualization of Atmospheric
 Effects for Celestial Bodies", IEEE TVCG 27(2), 2021, describe an atmosphere by a few
 analytic ingredients; :func:`openspace_profile` turns them into an
-:class:`~skymodel.profile.OpticalProfile` (per-metre coefficients on an altitude grid, the
+:class:`~skymodel.optics.profile.OpticalProfile` (per-metre coefficients on an altitude grid, the
 planet's own radius and atmosphere top) that :class:`skymodel.render.marcher.SkyMarcher`
 renders like ours, with multiple scattering, so any difference from ``ours`` comes from the
 parameterisation and not from the solver. The numbers are in
-``presets/models/openspace.toml`` (each with its source); in short:
+``skymodel/data/sources/models/openspace.toml`` (each with its source); in short:
 
 * Rayleigh: ``beta_R = 8 pi^3 (n^2 - 1)^2 / (3 N lambda^4) (6 + 3 d) / (6 - 7 d)`` at the
   ground, ``exp(-h / H_R)`` above; Penndorf's phase function (``d = 0.035`` on Earth gives
@@ -37,12 +37,12 @@ import functools
 
 import numpy as np
 
-from ..data import load_toml
-from ..errors import check_choice, check_finite, check_range
-from ..profile import OpticalProfile
-from . import ModelRadiance, SkyModel, SkyScene, register
+from skymodel.data import load_toml
+from skymodel.errors import check_choice, check_finite, check_range
+from skymodel.optics.profile import OpticalProfile
+from skymodel.models import ModelRadiance, SkyModel, SkyScene, register
 
-TABLE = "models/openspace.toml"
+TABLE = "sources/models/openspace.toml"
 PLANETS = ("earth", "mars")
 #: Scattering angles (degrees) of the tabulated Mie phase functions: fine near the
 #: forward peak, 1 degree steps beyond 10 degrees.
@@ -120,7 +120,7 @@ def mie_spectral_shape(params: dict, wavelengths_nm) -> np.ndarray:
 
 def ozone_layer_density(params: dict, altitudes_m, column_du: float) -> np.ndarray:
     """Triangular ozone layer (number density, m^-3) holding ``column_du`` Dobson units."""
-    from ..ozone import DOBSON_UNIT_M2
+    from skymodel.optics.ozone import DOBSON_UNIT_M2
 
     h = np.asarray(altitudes_m, float)
     b, p, t = (params[k] * 1e3 for k in ("ozone_bottom_km", "ozone_peak_km", "ozone_top_km"))
@@ -138,10 +138,10 @@ def openspace_profile(planet: str = "earth", wavelengths_nm=None, aod550: float 
     ``aod550``: Mie (haze / dust) optical depth at 550 nm (default: Earth from the
     preset's turbidity, Mars its dust optical depth); ``ozone_du``: ozone column
     (default the preset's); ``ground_albedo``: Lambertian albedo (default the preset's)."""
-    from .. import sun
-    from ..geometry import altitude_grid
-    from ..ozone import ozone_cross_section
-    from ..wavelengths import as_wavelengths
+    from skymodel import sun
+    from skymodel.geometry import altitude_grid
+    from skymodel.optics.ozone import ozone_cross_section
+    from skymodel.wavelengths import as_wavelengths
 
     key = check_choice("planet", str(planet).lower(), PLANETS)
     prm = planet_parameters(key)
@@ -172,7 +172,7 @@ def openspace_profile(planet: str = "earth", wavelengths_nm=None, aod550: float 
     g1 = _interp(wl, prm["mie_wavelengths_nm"], prm["g1"])
     phase = double_hg(mu[:, None], g1[None, :], prm["g2"], prm["alpha"])
     # renormalise on the table's own quadrature (the marcher integrates the table this way)
-    from ..numerics import trapezoid
+    from skymodel.numerics import trapezoid
 
     phase = phase / (-2.0 * np.pi * trapezoid(phase, mu, axis=0))[None, :]
     albedo = float(prm["ground_albedo"] if ground_albedo is None else check_range("ground_albedo", ground_albedo, 0.0, 1.0))
@@ -202,8 +202,8 @@ def render(planet: str, scene: SkyScene, directions, observer_altitude_m: float 
     ``scene.atmosphere`` so that only the parameterisation differs from ``ours``."""
     import hashlib
 
-    from ..render.marcher import SkyMarcher
-    from ..render.sky import quality_settings
+    from skymodel.render.marcher import SkyMarcher
+    from skymodel.render.sky import quality_settings
 
     d = np.asarray(directions, float)
     kw = {}

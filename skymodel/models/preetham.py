@@ -31,7 +31,7 @@ times the paper's transmittances along Kasten's relative optical mass
 ``exp(-0.008735 lambda^-4.08 m)``, Angstrom aerosol ``exp(-beta lambda^-1.3 m)`` with
 ``beta = 0.04608 T - 0.04586``, ozone ``exp(-k_o l m)`` (l = 0.35 cm), mixed gases and
 water vapour (w = 2 cm) with Iqbal's absorption coefficients (lambda in micrometres; the
-tables are in ``presets/models/preetham.toml``).
+tables are in ``skymodel/data/sources/models/preetham.toml``).
 
 Aerial perspective
 ------------------
@@ -61,12 +61,12 @@ import functools
 
 import numpy as np
 
-from ..colorimetry import K_M, cmf_weights
-from ..data import load_toml
-from ..errors import SkymodelInputError, check_range
-from . import ModelRadiance, SkyModel, SkyScene, register
+from skymodel.colorimetry import K_M, cmf_weights
+from skymodel.data import load_toml
+from skymodel.errors import SkymodelInputError, check_range
+from skymodel.models import ModelRadiance, SkyModel, SkyScene, register
 
-TABLE = "models/preetham.toml"
+TABLE = "sources/models/preetham.toml"
 #: Turbidity range the model is used in (see the module doc).
 T_MIN, T_MAX = 2.0, 10.0
 
@@ -207,7 +207,7 @@ def sun_irradiance(turbidity, sun_zenith_rad, wavelengths_nm, extraterrestrial=N
     extraterrestrial spectrum defaults to ours (``skymodel.sun.solar_irradiance``)."""
     wl = np.asarray(wavelengths_nm, dtype=float)
     if extraterrestrial is None:
-        from .. import sun
+        from skymodel import sun
 
         extraterrestrial = sun.solar_irradiance(wl)
     if float(sun_zenith_rad) > np.pi / 2:

@@ -69,9 +69,9 @@ import numbers
 
 import numpy as np
 
-from ..errors import SkymodelInputError
-from ..wavelengths import default_wavelengths
-from .rays import direction_from_angles
+from skymodel.errors import SkymodelInputError
+from skymodel.wavelengths import default_wavelengths
+from skymodel.render.rays import direction_from_angles
 
 #: Multiplier of the radiance cube size in :func:`estimate_memory_bytes` (see module doc).
 MEMORY_FACTOR = 4

@@ -36,7 +36,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..errors import SkymodelInputError
+from skymodel.errors import SkymodelInputError
 
 __all__ = ["write_exr", "write_png", "tonemap", "write_spectral_npz", "save_outputs", "luminance_rec709",
            "srgb_oetf", "auto_exposure_luminance", "check_output_path", "CHROMATICITIES"]
@@ -492,7 +492,7 @@ def _metadata_json(metadata, parameter="metadata"):
 
 
 def _validate_spectral(radiance, wavelengths_nm, directions, valid):
-    from ..wavelengths import as_wavelengths
+    from skymodel.wavelengths import as_wavelengths
 
     rad = np.asarray(radiance)
     if rad.ndim != 3 or rad.dtype.kind not in "fiu":
@@ -569,8 +569,8 @@ def save_outputs(out=None, png=None, spectral=None, *, radiance, wavelengths, ca
     temporary files and renamed into place together. Returns ``{"out": path, ...}`` for
     the files written.
     """
-    from ..colorimetry import spectral_to_xyz, xyz_to_rgb
-    from .cameras import Camera
+    from skymodel.colorimetry import spectral_to_xyz, xyz_to_rgb
+    from skymodel.render.cameras import Camera
 
     targets = {"out": out, "png": png, "spectral": spectral}
     if all(v is None for v in targets.values()):

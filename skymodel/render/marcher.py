@@ -38,13 +38,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import SkymodelInputError, check_finite, check_range
-from ..numerics import linear_interp_matrix
-from ..profile import LayeredProfile, OpticalProfile
-from .medium import evaluate_many, factor_medium, march_samples
-from .multiple_scattering import MultipleScatteringField, solve_multiple_scattering
-from .rays import altitude_along, atmosphere_segment, sun_direction
-from .sun_transmittance import SunTransmittance
+from skymodel.errors import SkymodelInputError, check_finite, check_range
+from skymodel.numerics import linear_interp_matrix
+from skymodel.optics.profile import LayeredProfile, OpticalProfile
+from skymodel.render.medium import evaluate_many, factor_medium, march_samples
+from skymodel.render.multiple_scattering import MultipleScatteringField, solve_multiple_scattering
+from skymodel.render.rays import altitude_along, atmosphere_segment, sun_direction
+from skymodel.render.sun_transmittance import SunTransmittance
 
 MAX_OBSERVER_ALTITUDE_M = 120_000.0
 #: Largest peak optical depth (sun path + view path) the aureole table covers; beyond
@@ -284,8 +284,8 @@ class SkyMarcher:
         """Table of the peak light that delta-M leaves out (:mod:`skymodel.render.aureole`):
         (theta grid in radians, peak optical depth grid, table (n_theta, n_tau, n_wl) in
         sr^-1), or None when the aerosols have no truncated peak."""
-        from ..numerics import trapezoid
-        from .aureole import THETA_MAX_RAD, PeakAureole, peak_part
+        from skymodel.numerics import trapezoid
+        from skymodel.render.aureole import THETA_MAX_RAD, PeakAureole, peak_part
 
         prof, med = self.profile, self.medium
         if not np.any(med.forward_fraction > 0):

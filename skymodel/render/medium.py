@@ -10,8 +10,8 @@ interpolate k << n_wavelength basis functions and multiply by W at the end: the
 optical depth of a path is (integral of B along the path) @ W.
 
 The altitude dependence is interpolated as the profile itself is: linearly between
-the nodes of an :class:`~skymodel.profile.OpticalProfile`, piecewise-constant inside the
-layers of a :class:`~skymodel.profile.LayeredProfile`.
+the nodes of an :class:`~skymodel.optics.profile.OpticalProfile`, piecewise-constant inside the
+layers of a :class:`~skymodel.optics.profile.LayeredProfile`.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..profile import LayeredProfile, OpticalProfile
+from skymodel.optics.profile import LayeredProfile, OpticalProfile
 
 
 @dataclass(frozen=True)
@@ -104,7 +104,7 @@ def truncate_forward_peak(angles_deg, phase, cutoff_deg: float):
     p*(theta) = min(p(theta), p(cutoff)) inside the cone theta < cutoff, then
     renormalised; the removed fraction f = 1 - integral(min(p, p(cutoff))) is returned.
     ``phase`` (R, A, W) -> (f (R, W), p* (R, A, W))."""
-    from ..numerics import trapezoid
+    from skymodel.numerics import trapezoid
 
     ang = np.asarray(angles_deg, dtype=float)
     p = np.asarray(phase, dtype=float)

@@ -57,11 +57,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import altitude_grid
-from ..numerics import linear_interp_matrix
-from .medium import FactoredMedium, march_samples
-from .rays import altitude_along
-from .sun_transmittance import SUN_ANGULAR_RADIUS_RAD, SunTransmittance
+from skymodel.geometry import altitude_grid
+from skymodel.numerics import linear_interp_matrix
+from skymodel.render.medium import FactoredMedium, march_samples
+from skymodel.render.rays import altitude_along
+from skymodel.render.sun_transmittance import SUN_ANGULAR_RADIUS_RAD, SunTransmittance
 
 
 def sun_elevation_nodes(n: int, lowest_deg: float = -20.0) -> np.ndarray:
@@ -302,7 +302,7 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
     mu0 = mm.ravel()
     p = np.stack([np.zeros_like(r0), np.zeros_like(r0), r0], axis=-1)
     d = np.stack([np.sqrt(1.0 - mu0**2), np.zeros_like(r0), mu0], axis=-1)
-    from .rays import atmosphere_segment
+    from skymodel.render.rays import atmosphere_segment
 
     t0, t1, hits = atmosphere_segment(p, d, R, R + top)
     t, dt = march_samples(p, d, t0, t1, n_steps, R)
@@ -357,7 +357,7 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
         pm = pm / pm.sum(axis=1, keepdims=True)  # exact normalisation on the grid
         return np.ascontiguousarray(np.moveaxis(pm, -1, 0), dtype=np.float32)  # (n_wl, n_dir, n_dir)
 
-    from ..profile import _MediumBase
+    from skymodel.optics.profile import _MediumBase
 
     def aerosol_phase_fn(reg):
         ang = profile.aerosol_phase_angles_deg

@@ -16,10 +16,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import SkymodelInputError, check_choice
-from .cameras import Camera
-from .marcher import MarchSettings, SkyMarcher
-from .sun_transmittance import SUN_ANGULAR_RADIUS_RAD
+from skymodel.errors import SkymodelInputError, check_choice
+from skymodel.render.cameras import Camera
+from skymodel.render.marcher import MarchSettings, SkyMarcher
+from skymodel.render.sun_transmittance import SUN_ANGULAR_RADIUS_RAD
 
 #: Quality presets (see docs/accuracy.md for the measured error and time of each).
 QUALITY = {
@@ -100,7 +100,7 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
     sun_irr = marcher.direct_sun_irradiance()
     sun_mask = np.zeros(valid.shape, bool)
     if include_sun:
-        from .. import sun as sun_module
+        from skymodel import sun as sun_module
 
         sun_mask = add_sun_disc(radiance, dirs, valid, camera.pixel_solid_angles(), marcher.sun, sun_irr,
                                 profile.wavelengths_nm, limb_darkening=getattr(sun_module, "limb_darkening", None))

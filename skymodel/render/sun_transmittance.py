@@ -32,8 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .medium import LowRank, march_samples
-from .rays import altitude_along
+from skymodel.render.medium import LowRank, march_samples
+from skymodel.render.rays import altitude_along
 
 #: Angular radius of the sun at 1 AU, radians (IAU nominal radius 695,700 km).
 SUN_ANGULAR_RADIUS_RAD = np.arcsin(695_700.0 / 149_597_870.7)

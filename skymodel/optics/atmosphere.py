@@ -1,0 +1,186 @@
+"""The user-facing description of an atmosphere: where, when, which aerosols.
+
+>>> from skymodel import Atmosphere
+>>> atm = Atmosphere(location="urban", month=6)
+>>> prof = atm.optical_profile([400, 550, 700])      # per-height coefficients, m^-1
+>>> prof.layered(n_layers=8)                          # the same as piecewise-constant shells
+
+An :class:`Atmosphere` gathers the choices (location preset or latitude/longitude,
+month, aerosol type and amount, stratospheric aerosol, ozone column, ground albedo) and
+validates them once; :meth:`Atmosphere.optical_profile` turns them into an
+:class:`~skymodel.optics.profile.OpticalProfile` for any wavelength grid, combining
+
+* molecules: U.S. Standard Atmosphere 1976 + Bucholtz Rayleigh (:mod:`skymodel.optics.rayleigh`),
+* ozone: monthly zonal climatology and measured cross sections (:mod:`skymodel.optics.ozone`),
+* aerosols: the type's component mixture, Mie lookups and vertical profile
+  (:mod:`skymodel.optics.aerosols`),
+* ground albedo (:mod:`skymodel.optics.ground`) and the extraterrestrial solar spectrum
+  (:mod:`skymodel.sun`).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+
+from skymodel.optics import aerosols, ground, ozone, rayleigh
+from skymodel import sun
+from skymodel.data import load_toml
+from skymodel.errors import SkymodelInputError, check_choice, check_finite, check_range
+from skymodel.geometry import EARTH_RADIUS_M, TOA_ALTITUDE_M, altitude_grid
+from skymodel.optics.profile import OpticalProfile
+from skymodel.wavelengths import as_wavelengths
+
+
+def locations() -> dict[str, dict]:
+    """Named location presets (``skymodel/data/presets/locations.toml``)."""
+    return dict(load_toml("presets/locations.toml")["locations"])
+
+
+@dataclass(frozen=True)
+class Atmosphere:
+    """A validated set of atmosphere choices.
+
+    Parameters
+    ----------
+    location : name of a preset in ``skymodel/data/presets/locations.toml`` (``skymodel presets``
+        lists them), or None when ``latitude``/``longitude`` and ``aerosol`` are given.
+    month : 1..12, selects the ozone climatology (and nothing else: aerosol types carry
+        no seasonal cycle in the sources).
+    latitude, longitude : degrees (north, east positive); override the preset's.
+    aerosol : tropospheric aerosol type (``skymodel presets``) or ``"none"``; default
+        the location's.
+    aod550 : aerosol optical depth at 550 nm of the tropospheric aerosol (0..10); default:
+        what the type's number densities give. Exclusive with ``turbidity``.
+    turbidity : (tau_Rayleigh + tau_aerosol) / tau_Rayleigh at 550 nm (1..64).
+    stratospheric : ``"background"``, ``"volcanic"`` or ``"none"``.
+    stratospheric_aod550 : optical depth of the stratospheric aerosol at 550 nm.
+    ozone_du : total ozone column in Dobson units (default: the monthly climatology at
+        the latitude).
+    albedo : ground albedo 0..1 (default: the location's surface); or ``surface`` name.
+    n_altitudes : points of the altitude grid (0..100 km, denser near the ground).
+    """
+
+    location: str | None = "rural"
+    month: int = 6
+    latitude: float | None = None
+    longitude: float | None = None
+    aerosol: str | None = None
+    aod550: float | None = None
+    turbidity: float | None = None
+    stratospheric: str = "background"
+    stratospheric_aod550: float | None = None
+    ozone_du: float | None = None
+    albedo: float | None = None
+    surface: str | None = None
+    n_altitudes: int = 401
+    co2_ppm: float = rayleigh.DEFAULT_CO2_PPM
+
+    def __post_init__(self):
+        set_ = functools.partial(object.__setattr__, self)
+        if isinstance(self.month, bool) or not isinstance(self.month, (int, np.integer)) or not 1 <= int(self.month) <= 12:
+            raise SkymodelInputError("month", self.month, "an integer 1..12")
+        set_("month", int(self.month))
+        preset = {}
+        if self.location is not None:
+            name = check_choice("location", self.location, locations())
+            set_("location", name)
+            preset = locations()[name]
+        elif self.latitude is None or self.longitude is None or self.aerosol is None:
+            raise SkymodelInputError(
+                "location", None, "a preset name, or latitude, longitude and an explicit aerosol type"
+            )
+        lat = preset.get("latitude") if self.latitude is None else self.latitude
+        lon = preset.get("longitude", 0.0) if self.longitude is None else self.longitude
+        set_("latitude", check_range("latitude", lat, -90.0, 90.0, "degrees"))
+        set_("longitude", check_range("longitude", lon, -180.0, 180.0, "degrees"))
+        aer = self.aerosol if self.aerosol is not None else preset.get("aerosol", "continental")
+        set_("aerosol", "none" if str(aer).lower() == "none" else check_choice("aerosol", aer, aerosols.aerosol_types()))
+        strat = str(self.stratospheric).lower()
+        if strat not in ("background", "volcanic", "none"):
+            raise SkymodelInputError("stratospheric", self.stratospheric, "one of: background, volcanic, none")
+        set_("stratospheric", strat)
+        if self.aod550 is not None and self.turbidity is not None:
+            raise SkymodelInputError("aod550", self.aod550, "either aod550 or turbidity, not both")
+        if self.aod550 is not None:
+            set_("aod550", check_range("aod550", self.aod550, 0.0, 10.0))
+        if self.turbidity is not None:
+            set_("turbidity", check_range("turbidity", self.turbidity, 1.0, 64.0))
+        if self.stratospheric_aod550 is not None:
+            set_("stratospheric_aod550", check_range("stratospheric_aod550", self.stratospheric_aod550, 0.0, 2.0))
+        if self.ozone_du is not None:
+            du = check_range("ozone_du", self.ozone_du, 0.0, 1000.0, "DU")
+            if du <= 0.0:
+                raise SkymodelInputError("ozone_du", self.ozone_du, "a column in (0, 1000] DU")
+            set_("ozone_du", du)
+        if self.albedo is not None:
+            set_("albedo", check_range("albedo", self.albedo, 0.0, 1.0))
+        else:
+            surf = self.surface or preset.get("surface", "grass")
+            set_("surface", check_choice("surface", surf, ground.surfaces()))
+            set_("albedo", ground.surface_albedo(self.surface))
+        if int(self.n_altitudes) < 16 or int(self.n_altitudes) > 100_000:
+            raise SkymodelInputError("n_altitudes", self.n_altitudes, "an integer in [16, 100000]")
+        check_range("co2_ppm", self.co2_ppm, 0.0, 10_000.0, "ppm")
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def altitudes_m(self) -> np.ndarray:
+        return altitude_grid(int(self.n_altitudes), TOA_ALTITUDE_M)
+
+    def optical_profile(self, wavelengths_nm=None) -> OpticalProfile:
+        """Per-height optical properties on ``wavelengths_nm`` (default 380–780 nm, 5 nm)."""
+        return _build_profile(self, tuple(as_wavelengths(wavelengths_nm).tolist()))
+
+
+@functools.lru_cache(maxsize=32)
+def _build_profile(atm: Atmosphere, wavelengths: tuple) -> OpticalProfile:
+    wl = np.asarray(wavelengths, dtype=float)
+    h = atm.altitudes_m
+    ray = rayleigh.scattering_coefficient(h, wl, atm.co2_ppm)
+    o3_density = ozone.ozone_number_density(h, atm.month, atm.latitude, total_column_du=atm.ozone_du)
+    o3 = o3_density[:, None] * ozone.ozone_cross_section(wl)[None, :]
+    tau_r550 = float(rayleigh.optical_depth([550.0], atm.co2_ppm, h)[0])
+    aer = aerosols.aerosol_optics(
+        atm.aerosol, h, wl, aod550=atm.aod550, turbidity=atm.turbidity,
+        stratospheric=atm.stratospheric, stratospheric_aod550=atm.stratospheric_aod550,
+        rayleigh_optical_depth_550=tau_r550,
+    )
+    meta = {
+        "location": atm.location,
+        "latitude_deg": atm.latitude,
+        "longitude_deg": atm.longitude,
+        "month": atm.month,
+        "aerosol": atm.aerosol,
+        "stratospheric": atm.stratospheric,
+        "aod550": float(aer.aod550),
+        "angstrom_exponent": float(aer.angstrom_exponent),
+        "ozone_du": float(ozone.ozone_column_du(h, o3_density)),
+        "albedo": float(atm.albedo),
+        "surface": atm.surface,
+        "rayleigh_optical_depth_550": tau_r550,
+    }
+    prof = OpticalProfile(
+        wavelengths_nm=wl,
+        rayleigh_depolarization=rayleigh.depolarization_factor(wl, atm.co2_ppm),
+        aerosol_phase_angles_deg=np.asarray(aer.angles_deg, dtype=float),
+        aerosol_phase=np.asarray(aer.phase, dtype=float),
+        ground_albedo=ground.albedo_spectrum(atm.albedo, wl),
+        solar_irradiance=sun.solar_irradiance(wl),
+        planet_radius_m=EARTH_RADIUS_M,
+        top_altitude_m=TOA_ALTITUDE_M,
+        metadata=meta,
+        altitudes_m=h,
+        rayleigh_scattering=ray,
+        ozone_absorption=o3,
+        aerosol_scattering_by_regime=np.asarray(aer.scattering_by_regime, dtype=float),
+        aerosol_absorption=np.asarray(aer.absorption, dtype=float),
+    )
+    for name in ("rayleigh_scattering", "ozone_absorption", "aerosol_scattering_by_regime", "aerosol_absorption",
+                 "aerosol_phase", "solar_irradiance"):
+        arr = getattr(prof, name)
+        check_finite(name, arr)
+        arr.setflags(write=False)
+    return prof
