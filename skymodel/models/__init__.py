@@ -36,6 +36,7 @@ from typing import Callable
 
 import numpy as np
 
+from skymodel import scene
 from skymodel.errors import SkymodelInputError, check_range
 
 KINDS = ("spectral", "xyz", "relative")
@@ -50,7 +51,7 @@ class SkyScene:
     sun_elevation_deg: float
     sun_azimuth_deg: float = 180.0
     wavelengths_nm: np.ndarray | None = None
-    quality: str = "preview"
+    quality: str = scene.default("quality")
 
     def __post_init__(self):
         check_range("sun_elevation", self.sun_elevation_deg, -90.0, 90.0, "degrees")
@@ -200,7 +201,7 @@ def _ours_result(scene: SkyScene, d):
     import hashlib
 
     from skymodel.render.marcher import SkyMarcher
-    from skymodel.render.sky import quality_settings
+    from skymodel.render.quality import quality_settings
 
     key = (scene.atmosphere, scene.sun_elevation_deg, scene.sun_azimuth_deg, tuple(scene.wavelengths_nm.tolist()),
            str(scene.quality), hashlib.sha1(np.ascontiguousarray(d).tobytes()).hexdigest())

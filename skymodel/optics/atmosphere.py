@@ -28,7 +28,8 @@ import numpy as np
 from skymodel.optics import aerosols, ground, ozone, rayleigh
 from skymodel import sun
 from skymodel.data import load_toml
-from skymodel.errors import SkymodelInputError, check_choice, check_finite, check_range
+from skymodel import scene
+from skymodel.errors import SkymodelInputError, check_finite, check_range
 from skymodel.geometry import EARTH_RADIUS_M, TOA_ALTITUDE_M, altitude_grid
 from skymodel.optics.profile import OpticalProfile
 from skymodel.wavelengths import as_wavelengths
@@ -43,6 +44,8 @@ def locations() -> dict[str, dict]:
 class Atmosphere:
     """A validated set of atmosphere choices.
 
+    Defaults, ranges and accepted names are the registry's (:mod:`skymodel.scene`).
+
     Parameters
     ----------
     location : name of a preset in ``skymodel/data/presets/locations.toml`` (``skymodel presets``
@@ -50,8 +53,8 @@ class Atmosphere:
     month : 1..12, selects the ozone climatology (and nothing else: aerosol types carry
         no seasonal cycle in the sources).
     latitude, longitude : degrees (north, east positive); override the preset's.
-    aerosol : tropospheric aerosol type (``skymodel presets``) or ``"none"``; default
-        the location's.
+    aerosol : tropospheric aerosol type (``skymodel presets``) or ``"none"``, aliases
+        accepted (``"desert_dust"`` is ``"desert"``); default the location's.
     aod550 : aerosol optical depth at 550 nm of the tropospheric aerosol (0..10); default:
         what the type's number densities give. Exclusive with ``turbidity``.
     turbidity : (tau_Rayleigh + tau_aerosol) / tau_Rayleigh at 550 nm (1..64).
@@ -63,29 +66,29 @@ class Atmosphere:
     n_altitudes : points of the altitude grid (0..100 km, denser near the ground).
     """
 
-    location: str | None = "rural"
-    month: int = 6
-    latitude: float | None = None
-    longitude: float | None = None
-    aerosol: str | None = None
-    aod550: float | None = None
-    turbidity: float | None = None
-    stratospheric: str = "background"
-    stratospheric_aod550: float | None = None
-    ozone_du: float | None = None
-    albedo: float | None = None
-    surface: str | None = None
-    n_altitudes: int = 401
+    location: str | None = scene.default("location")
+    month: int = scene.default("month")
+    latitude: float | None = scene.default("latitude")
+    longitude: float | None = scene.default("longitude")
+    aerosol: str | None = scene.default("aerosol")
+    aod550: float | None = scene.default("aod550")
+    turbidity: float | None = scene.default("turbidity")
+    stratospheric: str = scene.default("stratospheric")
+    stratospheric_aod550: float | None = scene.default("stratospheric_aod550")
+    ozone_du: float | None = scene.default("ozone_du")
+    albedo: float | None = scene.default("albedo")
+    surface: str | None = scene.default("surface")
+    n_altitudes: int = scene.default("n_altitudes")
     co2_ppm: float = rayleigh.DEFAULT_CO2_PPM
 
     def __post_init__(self):
         set_ = functools.partial(object.__setattr__, self)
-        if isinstance(self.month, bool) or not isinstance(self.month, (int, np.integer)) or not 1 <= int(self.month) <= 12:
-            raise SkymodelInputError("month", self.month, "an integer 1..12")
-        set_("month", int(self.month))
+        if isinstance(self.month, bool) or not isinstance(self.month, (int, np.integer)):
+            raise SkymodelInputError("month", self.month, scene.parameter("month").allowed_text())
+        set_("month", scene.check("month", self.month))
         preset = {}
         if self.location is not None:
-            name = check_choice("location", self.location, locations())
+            name = scene.check("location", self.location)
             set_("location", name)
             preset = locations()[name]
         elif self.latitude is None or self.longitude is None or self.aerosol is None:
@@ -94,35 +97,20 @@ class Atmosphere:
             )
         lat = preset.get("latitude") if self.latitude is None else self.latitude
         lon = preset.get("longitude", 0.0) if self.longitude is None else self.longitude
-        set_("latitude", check_range("latitude", lat, -90.0, 90.0, "degrees"))
-        set_("longitude", check_range("longitude", lon, -180.0, 180.0, "degrees"))
+        set_("latitude", scene.parameter("latitude").check(lat))
+        set_("longitude", scene.parameter("longitude").check(lon))
         aer = self.aerosol if self.aerosol is not None else preset.get("aerosol", "continental")
-        set_("aerosol", "none" if str(aer).lower() == "none" else check_choice("aerosol", aer, aerosols.aerosol_types()))
-        strat = str(self.stratospheric).lower()
-        if strat not in ("background", "volcanic", "none"):
-            raise SkymodelInputError("stratospheric", self.stratospheric, "one of: background, volcanic, none")
-        set_("stratospheric", strat)
+        set_("aerosol", scene.check("aerosol", aer))  # aliases (desert_dust) give the canonical name
+        set_("stratospheric", scene.check("stratospheric", self.stratospheric))
         if self.aod550 is not None and self.turbidity is not None:
             raise SkymodelInputError("aod550", self.aod550, "either aod550 or turbidity, not both")
-        if self.aod550 is not None:
-            set_("aod550", check_range("aod550", self.aod550, 0.0, 10.0))
-        if self.turbidity is not None:
-            set_("turbidity", check_range("turbidity", self.turbidity, 1.0, 64.0))
-        if self.stratospheric_aod550 is not None:
-            set_("stratospheric_aod550", check_range("stratospheric_aod550", self.stratospheric_aod550, 0.0, 2.0))
-        if self.ozone_du is not None:
-            du = check_range("ozone_du", self.ozone_du, 0.0, 1000.0, "DU")
-            if du <= 0.0:
-                raise SkymodelInputError("ozone_du", self.ozone_du, "a column in (0, 1000] DU")
-            set_("ozone_du", du)
-        if self.albedo is not None:
-            set_("albedo", check_range("albedo", self.albedo, 0.0, 1.0))
-        else:
+        for name in ("aod550", "turbidity", "stratospheric_aod550", "ozone_du", "albedo"):
+            set_(name, scene.check(name, getattr(self, name)))
+        if self.albedo is None:
             surf = self.surface or preset.get("surface", "grass")
-            set_("surface", check_choice("surface", surf, ground.surfaces()))
+            set_("surface", scene.check("surface", surf))
             set_("albedo", ground.surface_albedo(self.surface))
-        if int(self.n_altitudes) < 16 or int(self.n_altitudes) > 100_000:
-            raise SkymodelInputError("n_altitudes", self.n_altitudes, "an integer in [16, 100000]")
+        set_("n_altitudes", scene.check("n_altitudes", self.n_altitudes))
         check_range("co2_ppm", self.co2_ppm, 0.0, 10_000.0, "ppm")
 
     # ------------------------------------------------------------------ derived

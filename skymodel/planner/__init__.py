@@ -276,7 +276,7 @@ class Plan:
         """``base`` (default: the ``final`` quality) with the plan's orders and Earth's shadow."""
         from dataclasses import replace
 
-        from skymodel.render.sky import QUALITY
+        from skymodel.render.quality import QUALITY
 
         s = base or QUALITY["final"]
         return replace(s, orders=self.orders, earth_shadow=bool(self["earth_shadow"].on))

@@ -1,8 +1,8 @@
 """Rendering a sky image: atmosphere + sun + camera -> spectral radiance per pixel.
 
-Quality presets name a set of :class:`~skymodel.render.marcher.MarchSettings`; the
-values were chosen from the accuracy/time measurements in ``docs/accuracy.md``
-(``skymodel bench accuracy``). The sun disc is added to the pixels it covers, limb
+Quality presets name a set of :class:`~skymodel.render.marcher.MarchSettings`
+(:mod:`skymodel.render.quality`; ``quality=None`` is the default quality of
+:mod:`skymodel.scene`). The sun disc is added to the pixels it covers, limb
 darkened, with its total irradiance conserved: the disc radiance is spread over the
 pixels whose centres fall inside it and normalised so that the sum of radiance x pixel
 solid angle equals the direct solar irradiance at the observer; a disc smaller than a
@@ -16,33 +16,22 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from skymodel.errors import SkymodelInputError, check_choice
+from skymodel import scene
 from skymodel.render.cameras import Camera
-from skymodel.render.marcher import MarchSettings, SkyMarcher
+from skymodel.render.marcher import SkyMarcher
+from skymodel.render.quality import QUALITIES, QUALITY, quality_settings
 from skymodel.render.sun_transmittance import SUN_ANGULAR_RADIUS_RAD
 
-#: Quality presets (see docs/accuracy.md for the measured error and time of each).
-QUALITY = {
-    # Tuned from the measurement (docs/accuracy.md, "Choosing the presets"): twilight (sun
-    # -4 deg) needs more sun-angle and altitude nodes in the multiple-scattering table.
-    # preview: table_mus 16 -> 32, table_altitudes 16 -> 24; final: table_mus 24 -> 32,
-    # table_altitudes 24 -> 32, table_steps 48 -> 96, ms_wavelength_step_nm 20 -> 10.
-    "preview": MarchSettings(view_steps=40, order_tolerance=1e-2, ms_wavelength_step_nm=40.0, table_altitudes=24,
-                             table_mu=16, table_phi=8, table_mus=32, table_steps=32, sun_table_altitudes=64,
-                             sun_table_x=128, sun_table_steps=96, grid_zenith=64, grid_zenith_ground=16,
-                             grid_azimuth=37),
-    "final": MarchSettings(table_mus=32, table_altitudes=32, table_steps=96, ms_wavelength_step_nm=10.0),
-    "reference": MarchSettings(view_steps=128, order_tolerance=1e-4, ms_wavelength_step_nm=10.0,
-                               table_altitudes=32, table_mu=48, table_phi=16, table_mus=32, table_steps=96,
-                               sun_table_altitudes=128, sun_table_x=256, sun_table_steps=320, grid_zenith=192,
-                               grid_zenith_ground=48, grid_azimuth=121, sun_exact_deg=12.0),
-}
+# The quality presets live in skymodel.render.quality (re-exported here for older callers).
+__all__ = ["QUALITY", "QUALITIES", "quality_settings", "SkyImage", "add_sun_disc", "render_sky",
+           "render_sky_reduced"]
 
 
-def quality_settings(quality) -> MarchSettings:
-    if isinstance(quality, MarchSettings):
-        return quality
-    return QUALITY[check_choice("quality", quality, QUALITY)]
+def _quality_name(quality) -> str:
+    """The name reported in ``info["quality"]``: the preset's (the default's for None) or "custom"."""
+    if quality is None:
+        return scene.default("quality")
+    return str(quality).lower() if isinstance(quality, str) else "custom"
 
 
 @dataclass
@@ -89,9 +78,13 @@ def add_sun_disc(radiance, directions, valid, solid_angles, sun_dir, irradiance,
 
 
 def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_deg: float = 180.0,
-               observer_altitude_m: float = 0.0, quality="final", include_sun: bool = True,
+               observer_altitude_m: float = 0.0, quality=None, include_sun: bool = True,
                progress=None) -> SkyImage:
-    """Render ``camera``'s pixels for the atmosphere ``profile`` (smooth or layered)."""
+    """Render ``camera``'s pixels for the atmosphere ``profile`` (smooth or layered).
+
+    ``sun_elevation_deg`` / ``sun_azimuth_deg`` [deg], ``observer_altitude_m`` [m];
+    ``quality``: a preset name, a MarchSettings, or None for the default quality
+    (:mod:`skymodel.scene`, ``quality``)."""
     t0 = time.perf_counter()
     marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, quality_settings(quality),
                          progress=progress)
@@ -107,12 +100,12 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
     info = res_info
     info["total_s"] = time.perf_counter() - t0
     info["sun_pixels"] = int(sun_mask.sum())
-    info["quality"] = quality if isinstance(quality, str) else "custom"
+    info["quality"] = _quality_name(quality)
     return SkyImage(radiance, valid, dirs, profile.wavelengths_nm, camera, marcher.sun, sun_irr, info)
 
 
 def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce, n_channels: int,
-                       sun_azimuth_deg: float = 180.0, observer_altitude_m: float = 0.0, quality="final",
+                       sun_azimuth_deg: float = 180.0, observer_altitude_m: float = 0.0, quality=None,
                        band_pixels: int = 65536, progress=None):
     """Render ``camera`` without ever holding the whole spectral cube: the image is marched
     in bands of about ``band_pixels`` pixels and each band's spectra are reduced at once by
@@ -129,7 +122,7 @@ def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce
     out, info, bands = _march_pixels(marcher, dirs, valid, reduce, n_channels, band_pixels)
     info["total_s"] = time.perf_counter() - t0
     info["bands"] = bands
-    info["quality"] = quality if isinstance(quality, str) else "custom"
+    info["quality"] = _quality_name(quality)
     return out, marcher.direct_sun_irradiance(), info
 
 

@@ -1,0 +1,135 @@
+"""The quality presets: one registry, one dispatcher.
+
+Each preset is a :class:`Quality`: the renderer's :class:`~skymodel.render.marcher.MarchSettings`,
+the environment image width and spectral step the Blender add-on renders it at, one
+sentence of what it is for, and the targets it was chosen to meet. Its measured error and
+time are read from ``skymodel/data/presets/accuracy/measured.json`` (written by
+``skymodel bench accuracy``; the prose is in ``docs/accuracy.md``, "Choosing the presets")
+by :meth:`Quality.measured`, so the numbers are never copied by hand.
+
+:data:`QUALITIES` is the only place a quality is defined; :func:`quality_settings` is the
+dispatcher (it validates the name and names the choices on error). The names and the
+default are the ``quality`` parameter of :mod:`skymodel.scene`.
+
+>>> from skymodel.render.quality import quality_settings, QUALITIES
+>>> quality_settings("final").table_mus
+32
+>>> QUALITIES["preview"].environment_width_px
+512
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from skymodel import scene
+from skymodel.data import data_path
+from skymodel.errors import SkymodelInputError
+from skymodel.render.marcher import MarchSettings
+
+#: Where the measured error and time of the presets come from.
+MEASURED = "presets/accuracy/measured.json"
+
+
+@dataclass(frozen=True)
+class Quality:
+    """A quality preset.
+
+    Attributes
+    ----------
+    name : the preset's name (one of the ``quality`` parameter's choices in :mod:`skymodel.scene`).
+    settings : the marcher's knobs.
+    environment_width_px : width [px] of the Blender add-on's equirectangular environment
+        image (height = width / 2) when the user leaves the width at 0.
+    wavelength_step_nm : spectral step [nm] of the add-on's render.
+    purpose : one sentence: what the preset is for.
+    target : the targets it was chosen to meet at 512x256 on the project's 2-core
+        machine (issue 3): ``radiance_rel_mean`` [fraction], ``time_s`` [s],
+        ``peak_memory_mb`` [MiB]; empty for the reference.
+    """
+
+    name: str
+    settings: MarchSettings
+    environment_width_px: int
+    wavelength_step_nm: float
+    purpose: str
+    target: dict = field(default_factory=dict, compare=False, hash=False)
+
+    def measured(self) -> dict:
+        """The preset's worst case over the benchmark scenes (noon, sunset, twilight) from
+        ``measured.json``: ``radiance_rel_mean`` [fraction, against the reference],
+        ``de2000_mean``, ``time_s`` [s], ``peak_memory_mb`` [MiB], plus ``source`` (the file,
+        its date and machine). Empty dict when the file has no entry for the preset."""
+        import json
+
+        with open(data_path(*MEASURED.split("/")), encoding="utf-8") as f:
+            data = json.load(f)
+        per_scene = data.get("presets", {}).get(self.name, {})
+        if not per_scene:
+            return {}
+        keys = ("radiance_rel_mean", "de2000_mean", "time_s", "peak_memory_mb")
+        out = {k: max(float(e[k]) for e in per_scene.values()) for k in keys}
+        out["scenes"] = sorted(per_scene)
+        out["source"] = f"skymodel/data/{MEASURED} ({data.get('date')}, {data.get('machine')})"
+        return out
+
+
+#: The quality presets, name -> :class:`Quality`. The MarchSettings were tuned from the
+#: measurement (docs/accuracy.md, "Choosing the presets"): twilight (sun -4 deg) needs more
+#: sun-angle and altitude nodes in the multiple-scattering table. preview: table_mus
+#: 16 -> 32, table_altitudes 16 -> 24; final: table_mus 24 -> 32, table_altitudes 24 -> 32,
+#: table_steps 48 -> 96, ms_wavelength_step_nm 20 -> 10.
+QUALITIES: dict[str, Quality] = {
+    "preview": Quality(
+        "preview",
+        MarchSettings(view_steps=40, order_tolerance=1e-2, ms_wavelength_step_nm=40.0, table_altitudes=24,
+                      table_mu=16, table_phi=8, table_mus=32, table_steps=32, sun_table_altitudes=64,
+                      sun_table_x=128, sun_table_steps=96, grid_zenith=64, grid_zenith_ground=16,
+                      grid_azimuth=37),
+        environment_width_px=512, wavelength_step_nm=10.0,
+        purpose="interactive work: a 512x256 sky in seconds, about 1 % mean radiance error at worst (twilight)",
+        target={"radiance_rel_mean": 0.02, "time_s": 10.0}),
+    "final": Quality(
+        "final",
+        MarchSettings(table_mus=32, table_altitudes=32, table_steps=96, ms_wavelength_step_nm=10.0),
+        environment_width_px=1024, wavelength_step_nm=5.0,
+        purpose="images to keep: under 0.1 % mean radiance error in tens of seconds at 512x256",
+        target={"radiance_rel_mean": 0.005, "time_s": 60.0, "peak_memory_mb": 2048.0}),
+    "reference": Quality(
+        "reference",
+        MarchSettings(view_steps=128, order_tolerance=1e-4, ms_wavelength_step_nm=10.0, table_altitudes=32,
+                      table_mu=48, table_phi=16, table_mus=32, table_steps=96, sun_table_altitudes=128,
+                      sun_table_x=256, sun_table_steps=320, grid_zenith=192, grid_zenith_ground=48,
+                      grid_azimuth=121, sun_exact_deg=12.0),
+        environment_width_px=2048, wavelength_step_nm=5.0,
+        purpose="the accuracy benchmark's reference: tight tolerances, minutes per image"),
+}
+
+if tuple(QUALITIES) != tuple(scene.parameter("quality").choices):  # pragma: no cover - a packaging error
+    raise ImportError("skymodel.render.quality: QUALITIES and scene's quality choices differ")
+
+#: name -> MarchSettings (the settings of :data:`QUALITIES`; kept for older callers).
+QUALITY: dict[str, MarchSettings] = {name: q.settings for name, q in QUALITIES.items()}
+
+
+def quality(name=None) -> Quality:
+    """The :class:`Quality` called ``name`` (case-insensitive; None: the default quality of
+    :mod:`skymodel.scene`). Raises :class:`~skymodel.errors.SkymodelInputError` naming
+    ``quality`` and the choices."""
+    key = scene.default("quality") if name is None else str(name).strip().lower()
+    if key not in QUALITIES:
+        raise SkymodelInputError("quality", name, "one of: " + ", ".join(QUALITIES))
+    return QUALITIES[key]
+
+
+def quality_settings(name=None) -> MarchSettings:
+    """The marcher settings of the quality ``name`` (a :class:`MarchSettings` is returned
+    as is; None: the default quality of :mod:`skymodel.scene`)."""
+    if isinstance(name, MarchSettings):
+        return name
+    return quality(name).settings
+
+
+def targets() -> dict[str, dict]:
+    """name -> target of every preset that has one (what ``docs/accuracy.md`` checks)."""
+    return {name: dict(q.target) for name, q in QUALITIES.items() if q.target}

@@ -1,0 +1,379 @@
+"""Every user-facing parameter once, and the one function that places the sun.
+
+A :class:`Parameter` holds what a user may set: its name, unit, default, allowed range or
+names (with aliases), and one sentence of help. :data:`PARAMETERS` is the registry of all
+of them; the command line (:mod:`skymodel.cli.options`), the Python signatures
+(:class:`skymodel.optics.atmosphere.Atmosphere`, :func:`skymodel.render.sky.render_sky`),
+the Blender add-on's properties (``blender_addon/props.py``) and the quality registry
+(:mod:`skymodel.render.quality`) read their defaults, bounds and help from here, so a
+number is typed in exactly one place.
+
+>>> from skymodel import scene
+>>> scene.parameter("sun_elevation").range_text()
+'-12..90 deg'
+>>> scene.check("month", 13)
+Traceback (most recent call last):
+...
+skymodel.errors.SkymodelInputError: month=13 is not allowed: expected an integer in 1..12
+
+The registry is read at call time everywhere (never copied at import), so replacing an
+entry (``PARAMETERS["month"] = dataclasses.replace(...)``) changes the CLI, the Python
+API and the add-on together; ``tests/test_scene.py`` checks that.
+
+:func:`place_sun` is the single place where the sun is put in the sky, from a UTC date and
+time at a place (through :func:`skymodel.sun.solar_position`) or from elevation/azimuth
+angles; the CLI and the add-on both call it.
+
+This is a base module: it imports only :mod:`skymodel.errors`, :mod:`skymodel.sun`,
+:mod:`skymodel.data`, numpy and the standard library.
+"""
+
+from __future__ import annotations
+
+import calendar
+import datetime as _dt
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from skymodel import sun as _sun
+from skymodel.data import load_toml
+from skymodel.errors import SkymodelInputError
+
+__all__ = ["Parameter", "PARAMETERS", "parameter", "default", "check", "SunPlacement", "place_sun",
+           "time_iso", "month_of"]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One user-facing parameter.
+
+    Attributes
+    ----------
+    name : the name used in Python keywords, error messages and JSON (``"sun_elevation"``).
+    unit : unit of the value (``"deg"``, ``"m"``, ``"DU"``, ``"nm"``, ``"px"``; ``""`` if none).
+    help : one sentence saying what the parameter is.
+    default : the value used when the user gives none; ``None`` means "derived", and
+        ``default_note`` says from what (e.g. "the location's").
+    minimum, maximum : inclusive bounds of a number (None: unbounded on that side).
+    exclusive_minimum : the minimum itself is refused (``ozone_du`` > 0).
+    integer : the value must be a whole number.
+    choices : the canonical names a text value may take (case-insensitive).
+    aliases : alternative names, as ``(alias, canonical)`` pairs.
+    flag : the command-line option (``"--sun-elevation"``).
+    default_note : what a ``None`` default stands for.
+    suggested : a typical value, for interfaces that need a number in a field that is
+        switched off by default (Blender's AOD field); not a default of the physics.
+    soft_minimum, soft_maximum : the range a slider offers (Blender); the hard bounds apply.
+    """
+
+    name: str
+    unit: str
+    help: str
+    default: Any = None
+    minimum: float | None = None
+    maximum: float | None = None
+    exclusive_minimum: bool = False
+    integer: bool = False
+    choices: tuple = ()
+    aliases: tuple = ()
+    flag: str | None = None
+    default_note: str = ""
+    suggested: Any = None
+    soft_minimum: float | None = None
+    soft_maximum: float | None = None
+    extra: dict = field(default_factory=dict, compare=False, hash=False)
+
+    # ------------------------------------------------------------------ text
+    @property
+    def alias_map(self) -> dict[str, str]:
+        """``{alias: canonical}``."""
+        return dict(self.aliases)
+
+    @property
+    def is_number(self) -> bool:
+        return not self.choices and (self.minimum is not None or self.maximum is not None)
+
+    def range_text(self) -> str:
+        """What is allowed, short: ``'-12..90 deg'``, ``'one of: preview, final, reference'``."""
+        if self.choices:
+            return "one of: " + ", ".join(self.choices)
+        lo = "" if self.minimum is None else f"{self.minimum:g}"
+        hi = "" if self.maximum is None else f"{self.maximum:g}"
+        text = f"({lo}, {hi}]" if self.exclusive_minimum else f"{lo}..{hi}"
+        return text + (f" {self.unit}" if self.unit else "")
+
+    def allowed_text(self) -> str:
+        """What is allowed, as an error message says it."""
+        if self.choices:
+            text = "one of: " + ", ".join(self.choices) + " (case-insensitive)"
+            if self.aliases:
+                text += "; aliases: " + ", ".join(sorted(self.alias_map))
+            return text
+        kind = "an integer" if self.integer else "a number"
+        return f"{kind} in {self.range_text()}"
+
+    def default_text(self) -> str:
+        if self.default is None:
+            return self.default_note or "none"
+        return f"{self.default:g}" if isinstance(self.default, float) else str(self.default)
+
+    def help_text(self) -> str:
+        """The help of a command-line option: the sentence, the range and the default."""
+        return f"{self.help} ({self.range_text()}; default {self.default_text()})"
+
+    # ------------------------------------------------------------------ checking
+    def check(self, value):
+        """Return ``value`` validated (a float, an int or the canonical name); ``None``
+        passes when the default is ``None`` (derived). Raises
+        :class:`~skymodel.errors.SkymodelInputError` naming the parameter and the range."""
+        if value is None and self.default is None:
+            return None
+        if self.choices:
+            key = str(value).strip().lower()
+            key = self.alias_map.get(key, key)
+            for c in self.choices:
+                if key == str(c).lower():
+                    return c
+            raise SkymodelInputError(self.name, value, self.allowed_text())
+        if isinstance(value, bool):
+            raise SkymodelInputError(self.name, value, self.allowed_text())
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            raise SkymodelInputError(self.name, value, self.allowed_text()) from None
+        ok = math.isfinite(v) or (self.maximum is None and v == math.inf)
+        if self.minimum is not None:
+            ok = ok and (v > self.minimum if self.exclusive_minimum else v >= self.minimum)
+        if self.maximum is not None:
+            ok = ok and v <= self.maximum
+        if self.integer:
+            ok = ok and v == int(v)
+        if not ok:
+            raise SkymodelInputError(self.name, value, self.allowed_text())
+        return int(v) if self.integer else v
+
+
+# ---------------------------------------------------------------------------- the registry
+
+
+def _location_names() -> tuple:
+    return tuple(load_toml("presets/locations.toml")["locations"])
+
+
+def _aerosol_table() -> dict:
+    return load_toml("presets/aerosols/types.toml")
+
+
+def _aerosol_names() -> tuple:
+    types = _aerosol_table()["types"]
+    return tuple(n for n, t in types.items() if t["regime"] == "troposphere") + ("none",)
+
+
+def _aerosol_aliases() -> tuple:
+    return tuple(sorted(_aerosol_table().get("aliases", {}).items()))
+
+
+def _surface_names() -> tuple:
+    return tuple(load_toml("presets/surfaces.toml")["surfaces"])
+
+
+#: The names of the quality presets (their meaning: :mod:`skymodel.render.quality`).
+QUALITY_NAMES = ("preview", "final", "reference")
+
+_P = Parameter
+_ALL = [
+    # ---- where
+    _P("location", "", "location preset: latitude, longitude, aerosol type and ground (`skymodel presets`)",
+       default="rural", choices=_location_names(), flag="--location"),
+    _P("latitude", "deg", "latitude, degrees north", minimum=-90.0, maximum=90.0, flag="--lat",
+       default_note="the location's", suggested=45.0),
+    _P("longitude", "deg", "longitude, degrees east", minimum=-180.0, maximum=180.0, flag="--lon",
+       default_note="the location's", suggested=0.0),
+    # ---- when
+    _P("month", "", "month of the year (selects the ozone climatology)", default=6, minimum=1, maximum=12,
+       integer=True, flag="--month"),
+    _P("time_utc", "", "UTC date-time, ISO 8601 (2026-06-21T12:00:00Z): places the sun at the location and "
+       f"sets the month; years {_sun.SUPPORTED_YEARS[0]}..{_sun.SUPPORTED_YEARS[1]}", flag="--time",
+       default_note="none (the sun from its elevation and azimuth)"),
+    _P("year", "", "year of the date (UTC)", default=2026, minimum=_sun.SUPPORTED_YEARS[0],
+       maximum=_sun.SUPPORTED_YEARS[1], integer=True),
+    _P("day", "", "day of the month (UTC)", default=21, minimum=1, maximum=31, integer=True),
+    _P("hour", "h", "hour of the day, UTC", default=12, minimum=0, maximum=23, integer=True),
+    _P("minute", "min", "minute of the hour", default=0, minimum=0, maximum=59, integer=True),
+    # ---- air
+    _P("aerosol", "", "tropospheric aerosol type, or none for clean air", choices=_aerosol_names(),
+       aliases=_aerosol_aliases(), flag="--aerosol", default_note="the location's"),
+    _P("aod550", "", "aerosol optical depth of the tropospheric aerosol at 550 nm (exclusive with turbidity)",
+       minimum=0.0, maximum=10.0, flag="--aod550", default_note="the aerosol type's", suggested=0.2,
+       soft_maximum=2.0),
+    _P("turbidity", "", "turbidity (tau_Rayleigh + tau_aerosol) / tau_Rayleigh at 550 nm", minimum=1.0,
+       maximum=64.0, flag="--turbidity", default_note="the aerosol type's", suggested=2.5, soft_maximum=10.0),
+    _P("stratospheric", "", "stratospheric aerosol", default="background",
+       choices=("background", "volcanic", "none"), flag="--stratospheric"),
+    _P("stratospheric_aod550", "", "optical depth of the stratospheric aerosol at 550 nm", minimum=0.0,
+       maximum=2.0, default_note="the stratospheric type's"),
+    _P("ozone_du", "DU", "total ozone column", minimum=0.0, maximum=1000.0, exclusive_minimum=True,
+       flag="--ozone-du", default_note="the monthly climatology at the latitude", suggested=300.0,
+       soft_minimum=100.0, soft_maximum=500.0),
+    _P("albedo", "", "ground albedo (Lambertian, grey)", minimum=0.0, maximum=1.0, flag="--albedo",
+       default_note="the location's surface", suggested=0.2),
+    _P("surface", "", "ground surface whose albedo is used", choices=_surface_names(),
+       default_note="the location's"),
+    _P("n_altitudes", "", "points of the altitude grid (0..100 km, denser near the ground)", default=401,
+       minimum=16, maximum=100_000, integer=True, flag="--altitudes"),
+    _P("layers", "", "piecewise-constant layers of the atmosphere to print", minimum=1, maximum=64,
+       integer=True, flag="--layers", default_note="none"),
+    # ---- sun and observer
+    _P("sun_elevation", "deg", "elevation of the sun's centre above the horizon (below -12 the sky is "
+       "night: the end of civil dusk)", default=25.0, minimum=-12.0, maximum=90.0, flag="--sun-elevation"),
+    _P("sun_azimuth", "deg", "azimuth of the sun, clockwise from north (east 90)", default=180.0,
+       minimum=-360.0, maximum=360.0, flag="--sun-azimuth"),
+    _P("observer_altitude", "m", "height of the viewpoint above the ground", default=0.0, minimum=0.0,
+       maximum=120_000.0, flag="--observer-altitude", soft_maximum=20_000.0),
+    # ---- rendering
+    _P("quality", "", "accuracy preset of the renderer (skymodel.render.quality); the default, preview, "
+       "is the interactive one (seconds at 512x256, about 1 % mean radiance error) and is the same for "
+       "the Python API, every command and the Blender add-on", default="preview", choices=QUALITY_NAMES,
+       flag="--quality"),
+    _P("camera", "", "projection of the image", default="equirectangular",
+       choices=("equirectangular", "fisheye", "dome"), flag="--camera"),
+    _P("image_width", "px", "image width (height from the camera: equirectangular width / 2)", default=512,
+       minimum=1, maximum=16384, integer=True, flag="--size"),
+    _P("environment_width", "px", "Blender environment image width, 0 = the quality's", default=0, minimum=0,
+       maximum=8192, integer=True, soft_maximum=4096),
+    _P("wavelength_step", "nm", "spectral sampling of the render", default=5.0, minimum=1.0, maximum=50.0,
+       flag="--wavelength-step"),
+    _P("volume_layers", "", "nested atmosphere volumes of Blender's Volumetric mode", default=8, minimum=1,
+       maximum=24, integer=True, soft_maximum=16),
+    _P("view_zenith", "deg", "zenith angle of a view direction", minimum=0.0, maximum=180.0,
+       flag="--view-zenith"),
+    _P("compare_size", "px", "panel size of `skymodel compare` (fisheye)", default=128, minimum=16,
+       maximum=1024, integer=True, flag="--size"),
+    _P("compare_wavelength_step", "nm", "spectral sampling of `skymodel compare`", default=10.0, minimum=1.0,
+       maximum=50.0, flag="--wavelength-step"),
+]
+
+#: The registry: parameter name -> :class:`Parameter`.
+PARAMETERS: dict[str, Parameter] = {p.name: p for p in _ALL}
+del _P, _ALL
+
+
+def parameter(name: str) -> Parameter:
+    """The registry's entry ``name`` (raises ``KeyError`` listing the names)."""
+    try:
+        return PARAMETERS[name]
+    except KeyError:
+        raise KeyError(f"unknown parameter {name!r}; known: {', '.join(PARAMETERS)}") from None
+
+
+def default(name: str):
+    """The default of parameter ``name`` (``None``: derived, see its ``default_note``)."""
+    return parameter(name).default
+
+
+def check(name: str, value):
+    """Validate ``value`` against the registry entry ``name``; returns it as a float, an
+    int or the canonical name. Raises :class:`~skymodel.errors.SkymodelInputError` naming
+    the parameter and its allowed range."""
+    return parameter(name).check(value)
+
+
+# ---------------------------------------------------------------------------- the sun
+
+
+@dataclass(frozen=True)
+class SunPlacement:
+    """Where the sun is: elevation [deg] above the horizon, azimuth [deg] clockwise from
+    north in [0, 360), the Earth-sun distance [AU] (1 without a date), the date as ISO 8601
+    UTC text and its month (None without a date)."""
+
+    elevation_deg: float
+    azimuth_deg: float
+    earth_sun_distance_au: float = 1.0
+    time_utc: str | None = None
+    month: int | None = None
+
+
+def time_iso(time_utc) -> str:
+    """``time_utc`` as ISO 8601 UTC text (``2026-06-21T12:00:00Z``).
+
+    Parameters
+    ----------
+    time_utc : ISO 8601 text, a :class:`datetime.datetime` / numpy ``datetime64`` (UTC),
+        or the fields ``(year, month, day, hour, minute)`` [UTC], each checked against
+        the registry (a bad field raises naming ``year``, ``month``, ``day``, ...).
+    """
+    if isinstance(time_utc, (tuple, list)):
+        try:
+            year, month, day, hour, minute = time_utc
+        except ValueError:
+            raise SkymodelInputError("time_utc", time_utc, "(year, month, day, hour, minute)") from None
+        year, month = check("year", year), check("month", month)
+        last = calendar.monthrange(year, month)[1]
+        day = check("day", day)
+        if day > last:
+            raise SkymodelInputError("day", day, f"a day 1..{last} for {year}-{month:02d}")
+        hour, minute = check("hour", hour), check("minute", minute)
+        return _dt.datetime(year, month, day, hour, minute).strftime("%Y-%m-%dT%H:%M:00Z")
+    t = _sun.as_utc_datetime64(str(time_utc).strip() if isinstance(time_utc, str) else time_utc)
+    if t.ndim:
+        raise SkymodelInputError("time_utc", time_utc, "one date-time")
+    return str(t.astype("datetime64[s]")) + "Z"
+
+
+def month_of(time_utc) -> int | None:
+    """The month (1..12) of a date-time accepted by :func:`time_iso`; None for None."""
+    if time_utc is None:
+        return None
+    return int(time_iso(time_utc)[5:7])
+
+
+def place_sun(latitude_deg=None, longitude_deg=None, time_utc=None, elevation_deg=None,
+              azimuth_deg=None) -> SunPlacement:
+    """Place the sun: from a UTC date-time at a place, or from elevation and azimuth.
+
+    Parameters
+    ----------
+    latitude_deg, longitude_deg : the place [deg north, deg east]; needed with ``time_utc``.
+    time_utc : a date-time accepted by :func:`time_iso` (text, datetime, or
+        ``(year, month, day, hour, minute)``), or None to use the angles.
+    elevation_deg : sun elevation [deg]; default the registry's ``sun_elevation``.
+    azimuth_deg : sun azimuth [deg] clockwise from north; default the registry's
+        ``sun_azimuth``; returned modulo 360.
+
+    Returns
+    -------
+    SunPlacement
+
+    Raises
+    ------
+    SkymodelInputError
+        naming ``time_utc`` when both a time and angles are given, or when the date puts
+        the sun below the lowest elevation allowed (night); naming ``sun_elevation`` /
+        ``sun_azimuth`` for angles out of range.
+
+    References
+    ----------
+    The position: :func:`skymodel.sun.solar_position` (NOAA / Meeus), without refraction.
+    """
+    lowest = parameter("sun_elevation").minimum
+    if time_utc is not None:
+        if elevation_deg is not None or azimuth_deg is not None:
+            raise SkymodelInputError("time_utc", time_utc,
+                                     "either a time or a sun elevation/azimuth, not both")
+        iso = time_iso(time_utc)
+        pos = _sun.solar_position(latitude_deg, longitude_deg, iso)
+        elev = float(np.asarray(pos.elevation_deg))
+        az = float(np.asarray(pos.azimuth_deg))
+        dist = float(np.asarray(pos.earth_sun_distance_au))
+        if elev < lowest:
+            raise SkymodelInputError("time_utc", iso, f"a time when the sun is above {lowest:g} degrees "
+                                                      f"(it is at {elev:.1f} degrees: night)")
+        return SunPlacement(check("sun_elevation", elev), check("sun_azimuth", az) % 360.0, dist, iso,
+                            int(iso[5:7]))
+    elev = check("sun_elevation", default("sun_elevation") if elevation_deg is None else elevation_deg)
+    az = check("sun_azimuth", default("sun_azimuth") if azimuth_deg is None else azimuth_deg)
+    return SunPlacement(elev, az % 360.0)
