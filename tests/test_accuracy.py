@@ -9,12 +9,14 @@ import os
 import numpy as np
 import pytest
 
-from skymodel.validation import accuracy
 from skymodel.errors import SkymodelInputError
+from skymodel.validation import accuracy
 from skymodel.wavelengths import default_wavelengths
 
+from skymodel.data import data_path
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-MEASURED = os.path.join(ROOT, "presets", "accuracy", "measured.json")
+MEASURED = str(data_path("presets", "accuracy", "measured.json"))
 ROW_KEYS = {"scene": str, "knob": str, "settings": dict, "time_s": float, "radiance_rel_rms": float,
             "radiance_rel_max": float, "de2000_mean": float, "de2000_p95": float}
 PRESET_KEYS = ("time_s", "radiance_rel_mean", "de2000_mean", "peak_memory_mb", "width", "height")
@@ -208,6 +210,71 @@ def test_cli_writes_the_table_and_the_markdown(quick, tmp_path, monkeypatch):
     assert "prose kept" in text and "| layers | 4 |" in text
     assert (tmp_path / "img" / "accuracy_noon.png").stat().st_size > 1000
 
+
+
+def _checked_in_files():
+    """The files only --write-docs may change: docs/accuracy.md, its plots and the package's table."""
+    import glob
+
+    return [os.path.join(ROOT, "docs", "accuracy.md"), MEASURED] + sorted(
+        glob.glob(os.path.join(ROOT, "docs", "img", "accuracy_*.png")))
+
+
+def _digests(paths):
+    import hashlib
+
+    return {p: hashlib.sha256(open(p, "rb").read()).hexdigest() if os.path.exists(p) else None for p in paths}
+
+
+def test_cli_without_write_docs_leaves_docs_and_package_data_untouched(quick, tmp_path, monkeypatch):
+    # no --out/--json: the run writes into ./bench-accuracy-quick/ of the current directory, nowhere else
+    from skymodel.cli import main
+    from skymodel.cli.bench import QUICK_DIR, checked_in_targets
+
+    monkeypatch.setenv("SKYMODEL_CACHE", os.environ.get("SKYMODEL_CACHE", str(tmp_path / "cache")))
+    work = tmp_path / "cwd"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    files = _checked_in_files()
+    assert set(checked_in_targets()) == {files[0], os.path.realpath(MEASURED)}
+    before = _digests(files)
+    assert main(["bench", "accuracy", "--quick", "--knobs", "layers"]) == 0
+    assert main(["bench", "accuracy", "--merge", str(work / QUICK_DIR / "measured.json")]) == 0
+    assert _digests(files) == before
+    assert {p.name for p in work.iterdir()} == {QUICK_DIR, "bench-accuracy"}
+    result = json.loads((work / QUICK_DIR / "measured.json").read_text())
+    assert {r["knob"] for r in result["rows"]} == {"layers"}
+    assert result["command"] == "skymodel bench accuracy --quick --knobs layers"
+    assert "| layers | 4 |" in (work / QUICK_DIR / "accuracy.md").read_text()
+    assert (work / QUICK_DIR / "img" / "accuracy_noon.png").stat().st_size > 1000
+    merged = json.loads((work / "bench-accuracy" / "measured.json").read_text())
+    assert merged["rows"] == result["rows"] and merged["command"] == "skymodel bench accuracy"
+
+
+def test_cli_write_docs_goes_to_the_checked_in_files_only(quick, tmp_path, monkeypatch):
+    from skymodel.cli import bench, main
+
+    md, js = tmp_path / "docs" / "accuracy.md", tmp_path / "measured.json"
+    md.parent.mkdir()
+    md.write_text("# Accuracy\n\nprose kept\n")
+    monkeypatch.setattr(bench, "checked_in_targets", lambda: (str(md), str(js)))
+    monkeypatch.chdir(tmp_path)
+    part = tmp_path / "part.json"
+    part.write_text(json.dumps(dict(quick, command="skymodel bench accuracy --quick --json part.json")))
+    # the project's files take a full run: not a quick one, and not beside --out/--json
+    for extra in (["--quick"], ["--out", str(tmp_path / "x.md")], ["--json", str(tmp_path / "x.json")]):
+        assert main(["bench", "accuracy", "--write-docs", *extra]) == 2
+    assert not js.exists() and md.read_text() == "# Accuracy\n\nprose kept\n"
+    assert main(["bench", "accuracy", "--merge", str(part), "--write-docs"]) == 0
+    merged = json.loads(js.read_text())
+    assert merged["command"] == "skymodel bench accuracy --write-docs"
+    assert "prose kept" in md.read_text() and "    skymodel bench accuracy --write-docs" in md.read_text()
+    assert (md.parent / "img" / "accuracy_noon.png").stat().st_size > 1000
+    assert not (tmp_path / "bench-accuracy").exists()
+    # merging the merged table alone changes nothing: the checked-in doc can be regenerated without rendering
+    text = md.read_text()
+    assert main(["bench", "accuracy", "--merge", str(js), "--write-docs"]) == 0
+    assert json.loads(js.read_text()) == merged and md.read_text() == text
 
 def test_merge_replaces_only_the_rows_remeasured(quick):
     part = dict(quick, rows=[dict(r, time_s=r["time_s"] + 1.0) for r in quick["rows"] if r["knob"] == "orders"],

@@ -140,7 +140,7 @@ class BenchConfig:
 
 
 def full_config() -> BenchConfig:
-    from skymodel.render.sky import QUALITY
+    from skymodel.render.quality import QUALITY
 
     return BenchConfig("full", 128, 64, 512, 256, tuple(SCENES), QUALITY["reference"], QUALITY["final"], dict(QUALITY))
 
@@ -681,7 +681,7 @@ def run_benchmark(cfg: BenchConfig, knobs=None, scenes=None, log=print) -> dict:
     from datetime import datetime, timezone
 
     return {
-        "source": "measured on this project's renderer by `skymodel bench accuracy` (skymodel/accuracy.py); "
+        "source": "measured on this project's renderer by `skymodel bench accuracy` (skymodel/validation/accuracy.py); "
                   "method and discussion in docs/accuracy.md",
         "machine": _machine(), "command": "", "date": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "config": cfg.name, "total_s": time.perf_counter() - t_all, "load_avg_end": list(os.getloadavg()),
@@ -767,64 +767,20 @@ def merge_parts(parts: list[dict]) -> dict:
     """One measured table from runs restricted with --scenes/--knobs (for example one
     process per scene, run in parallel): the first part is the base, each later one
     replaces the rows and presets it measured (:func:`merge_results`). Every part is
-    listed under ``partial_runs`` with its command and time; the table's command is the
-    plain ``skymodel bench accuracy``."""
+    listed under ``partial_runs`` with its command and time (a first part that was merged
+    before keeps its list); the table's command is the plain ``skymodel bench accuracy``."""
     if not parts:
         raise ValueError("merge: give at least one part (a measured-table JSON)")
     first = parts[0]
-    out = dict(first, command="skymodel bench accuracy", total_s=first["total_s"],
-               partial_runs=[{"command": first["command"], "date": first["date"], "total_s": first["total_s"]}])
+    # a first part that is itself a merged table keeps its list of parts (merging it alone changes nothing)
+    runs = first.get("partial_runs") or [{"command": first["command"], "date": first["date"], "total_s": first["total_s"]}]
+    out = dict(first, command="skymodel bench accuracy", total_s=first["total_s"], partial_runs=list(runs))
     for part in parts[1:]:
         if part.get("config") != first.get("config") or part.get("camera") != first.get("camera"):
             raise ValueError(f"merge: part {part.get('command')!r} was measured with another configuration "
                              "than the first part (full and --quick runs do not mix)")
         out = merge_results(out, part)
     return out
-
-
-def add_bench_command(sub) -> None:
-    """Register ``skymodel bench accuracy`` on the CLI's subparsers."""
-    p = sub.add_parser("bench", help="benchmarks: what accuracy costs in time")
-    bsub = p.add_subparsers(dest="bench", required=True)
-    a = bsub.add_parser("accuracy", help="error vs time of every renderer knob and of the quality presets")
-    a.add_argument("--quick", action="store_true", help="a small run (one scene, 32x16, cheap settings; ~1 min)")
-    a.add_argument("--out", default=None, help="markdown to update (default docs/accuracy.md; with --quick: "
-                                                "out/accuracy-quick/accuracy.md)")
-    a.add_argument("--json", default=None, help="measured table (default skymodel/data/presets/accuracy/measured.json; with "
-                                                "--quick: out/accuracy-quick/measured.json)")
-    a.add_argument("--knobs", default=None, help="comma-separated subset of: " + ", ".join(KNOBS))
-    a.add_argument("--scenes", default=None, help="comma-separated subset of: " + ", ".join(SCENES))
-    a.add_argument("--merge", nargs="+", metavar="PART_JSON", default=None,
-                   help="render nothing: merge the measured tables of restricted runs (e.g. one per scene run in "
-                        "parallel, then --knobs preset alone) in this order into --json and --out")
-    a.set_defaults(func=_cmd_bench_accuracy)
-
-
-def _cmd_bench_accuracy(args) -> int:
-    quick_dir = os.path.join("out", "accuracy-quick")
-    out = args.out or (os.path.join(quick_dir, "accuracy.md") if args.quick else os.path.join("docs", "accuracy.md"))
-    js = args.json or (os.path.join(quick_dir, "measured.json") if args.quick
-                       else os.path.join("presets", "accuracy", "measured.json"))
-    if args.merge:
-        from skymodel.validation import accuracy_report
-
-        try:
-            result = merge_parts([_load_json(p) for p in args.merge])
-        except (OSError, ValueError, KeyError) as e:
-            print(f"skymodel bench accuracy --merge: {e}", file=sys.stderr)
-            return 2
-        accuracy_report.write_json(result, js)
-        accuracy_report.write_markdown(result, out)
-        print(f"wrote {js} and {out}", file=sys.stderr)
-        return 0
-    knobs = [k.strip() for k in args.knobs.split(",")] if args.knobs else None
-    scenes = [k.strip() for k in args.scenes.split(",")] if args.scenes else None
-    cmd = "skymodel bench accuracy" + (" --quick" if args.quick else "") + "".join(
-        f" --{k} {v}" for k, v in (("out", args.out), ("json", args.json), ("knobs", args.knobs),
-                                   ("scenes", args.scenes)) if v)
-    bench(args.quick, out, js, knobs, scenes, command=cmd,
-          log=lambda m: print(m, file=sys.stderr, flush=True))
-    return 0
 
 
 def main(argv=None) -> int:  # the subprocess entry point of render_job
