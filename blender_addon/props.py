@@ -14,7 +14,6 @@ import math
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
-from .core import core
 from .physics import SkyParams
 
 # search suggestions (kept alive: Blender does not copy the strings of callbacks)
@@ -24,9 +23,13 @@ _SUGGESTIONS: dict[str, list] = {}
 def _location_names() -> list[str]:
     if "location" not in _SUGGESTIONS:
         try:
-            names = sorted(core("optics.atmosphere").locations())
+            from skymodel.optics.atmosphere import locations
+
+            names = sorted(locations())
         except Exception:  # the core's data modules may be missing in a broken install
-            names = sorted(core("data").load_toml("presets/locations.toml").get("locations", {}))
+            from skymodel.data import load_toml
+
+            names = sorted(load_toml("presets/locations.toml").get("locations", {}))
         _SUGGESTIONS["location"] = names
     return _SUGGESTIONS["location"]
 
@@ -34,7 +37,9 @@ def _location_names() -> list[str]:
 def _aerosol_names() -> list[str]:
     if "aerosol" not in _SUGGESTIONS:
         try:
-            names = sorted(core("optics.aerosols").aerosol_types())
+            from skymodel.optics.aerosols import aerosol_types
+
+            names = sorted(aerosol_types())
         except Exception:
             names = []
         _SUGGESTIONS["aerosol"] = ["location", "none"] + names
