@@ -268,7 +268,7 @@ def test_compare_command_tiny(tmp_path, capsys):
     d = direction_from_angles(z, 180.0 + a)
     assert np.all(np.degrees(np.arccos(d @ sun_direction(30.0, 180.0))) >= 10.0)
     # the panels share ours' exposure even when ours is not drawn
-    from skymodel.cli.compare import compare
+    from skymodel.models.comparison import compare
 
     cmp = compare(Atmosphere(location="rural", month=6), 30.0, models="cie12,preetham", size=16,
                   wavelength_step_nm=20.0)

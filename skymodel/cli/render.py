@@ -1,0 +1,89 @@
+"""``skymodel render``: a sky image (scene-linear EXR, PNG preview, spectral NPZ)."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+from skymodel import scene
+from skymodel.cli.options import (add_atmosphere_arguments, add_option, add_sun_arguments, atmosphere_from_args,
+                                  profile_for_sun, size, sun_from_args)
+
+
+def add_command(sub) -> None:
+    """Register ``skymodel render`` on the CLI's subparsers."""
+    p = sub.add_parser("render", help="render a sky image (EXR, PNG preview, spectral NPZ)")
+    add_atmosphere_arguments(p)
+    add_sun_arguments(p)
+    add_option(p, "camera")
+    add_option(p, "image_width", type=size, default=(scene.default("image_width"), None), metavar="WIDTH[xHEIGHT]",
+               note="WIDTH or WIDTHxHEIGHT")
+    add_option(p, "quality")
+    add_option(p, "wavelength_step")
+    p.add_argument("--out", default="sky.exr", help="scene-linear float EXR (default sky.exr)")
+    p.add_argument("--png", default=None, help="tone-mapped PNG preview (default: the EXR name with .png)")
+    p.add_argument("--no-png", action="store_true", help="write no PNG")
+    p.add_argument("--spectral", default=None, help="also save the spectral cube as .npz")
+    p.add_argument("--xyz", action="store_true", help="EXR channels X, Y, Z instead of Rec.709 R, G, B")
+    p.add_argument("--exposure", type=float, default=None, help="PNG exposure in EV relative to auto")
+    p.add_argument("--no-sun", action="store_true", help="leave the solar disc out of the image")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_render)
+
+
+class Progress:
+    """Stage lines and the scattering-order bar on stderr (nothing with ``quiet``)."""
+
+    def __init__(self, quiet: bool):
+        self.quiet = quiet
+        self.t0 = time.perf_counter()
+
+    def stage(self, text):
+        if not self.quiet:
+            print(f"[{time.perf_counter() - self.t0:6.1f}s] {text}", file=sys.stderr, flush=True)
+
+    def order(self, n, size):
+        if not self.quiet:
+            bar = "#" * min(n, 30)
+            print(f"\r[{time.perf_counter() - self.t0:6.1f}s] scattering order {n:2d} "
+                  f"(adds {size:.2%}) {bar}", end="", file=sys.stderr, flush=True)
+
+
+def cmd_render(args) -> int:
+    from skymodel.render import image_io
+    from skymodel.render.cameras import make_camera
+    from skymodel.render.quality import quality_settings
+    from skymodel.render.sky import render_sky
+    from skymodel.wavelengths import default_wavelengths
+
+    prog = Progress(args.quiet)
+    atm = atmosphere_from_args(args)
+    sun = sun_from_args(args, atm)
+    quality = scene.check("quality", args.quality)
+    settings = quality_settings(quality)
+    wl = default_wavelengths(args.wavelength_step)
+    width, height = args.image_width
+    camera = make_camera(args.camera, width, height, n_wavelengths=wl.size)
+    png = None if args.no_png else (args.png or (str(args.out).rsplit(".", 1)[0] + ".png"))
+    # validate every output path before the (long) render, so nothing is half-written
+    for key, path, ext in (("out", args.out, ".exr"), ("png", png, ".png"), ("spectral", args.spectral, ".npz")):
+        if path is not None:
+            image_io.check_output_path(key, path, (ext,))
+    prog.stage(f"atmosphere: {atm.location or 'custom'}, month {atm.month}, aerosol {atm.aerosol}; "
+               f"sun elevation {sun.elevation_deg:.2f}, azimuth {sun.azimuth_deg:.2f}; {camera.name} "
+               f"{camera.width}x{camera.height}, {wl.size} wavelengths, quality {quality}")
+    profile = profile_for_sun(atm, wl, sun)
+    img = render_sky(profile, camera, sun.elevation_deg, sun.azimuth_deg, args.observer_altitude, settings,
+                     include_sun=not args.no_sun, progress=prog.order)
+    if not args.quiet:
+        print(file=sys.stderr)
+    prog.stage(f"rendered in {img.info['total_s']:.1f}s ({img.info['orders']} scattering orders)")
+    written = image_io.save_outputs(out=args.out, png=png, spectral=args.spectral, radiance=img.radiance,
+                                    wavelengths=wl, camera=camera, exposure_ev=args.exposure,
+                                    colour_space="xyz" if args.xyz else "rec709",
+                                    metadata={"atmosphere": profile.metadata, "sun_elevation_deg": sun.elevation_deg,
+                                              "sun_azimuth_deg": sun.azimuth_deg,
+                                              "observer_altitude_m": args.observer_altitude, "quality": quality})
+    for path in written.values():
+        prog.stage(f"wrote {path}")
+    return 0
