@@ -100,6 +100,8 @@ class Parameter:
         """What is allowed, short: ``'-12..90 deg'``, ``'one of: preview, final, reference'``."""
         if self.choices:
             return "one of: " + ", ".join(self.choices)
+        if self.minimum is None and self.maximum is None:
+            return self.unit
         lo = "" if self.minimum is None else f"{self.minimum:g}"
         hi = "" if self.maximum is None else f"{self.maximum:g}"
         text = f"({lo}, {hi}]" if self.exclusive_minimum else f"{lo}..{hi}"
@@ -122,7 +124,8 @@ class Parameter:
 
     def help_text(self) -> str:
         """The help of a command-line option: the sentence, the range and the default."""
-        return f"{self.help} ({self.range_text()}; default {self.default_text()})"
+        allowed = self.range_text()
+        return f"{self.help} ({allowed + '; ' if allowed else ''}default {self.default_text()})"
 
     # ------------------------------------------------------------------ checking
     def check(self, value):
