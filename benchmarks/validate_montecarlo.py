@@ -14,7 +14,7 @@ sun-cosine interpolation of the multiple-scattering table (linear; geometric bet
 nodes with the sun below the horizon, the first twilight fix; a cubic in log J, now) by
 running the marcher each way against one long MC run.
 
-    nice -n 10 python benchmarks/validate_montecarlo.py            # writes its section of docs/accuracy.md
+    nice -n 10 python benchmarks/validate_montecarlo.py            # writes its section of docs/validation.md
     nice -n 10 python benchmarks/validate_montecarlo.py --quick    # a smoke run (minutes, noisier)
 """
 
@@ -52,11 +52,11 @@ VIEWS = ((0.0, 0.0), (45.0, 0.0), (45.0, 180.0), (70.0, 90.0), (80.0, 0.0), (80.
 #: what the cone no longer cuts (zenith 96, azimuth 72 nodes, 2.5 degrees apart). With
 #: the 12-degree cone the light 2 degrees above a setting sun is left to the peak aureole's
 #: small-angle approximation, which there misses about 11 % (desert, sun at 0 degrees;
-#: docs/accuracy.md, "The sunward horizon at sunset"). The finer zenith, azimuth and
+#: notebooks/sunward_horizon/README.md). The finer zenith, azimuth and
 #: altitude nodes also take the zenith's multiple scattering down: rural AOD 0.2, sun at
 #: 20 degrees, albedo 0, marcher / MC - 1 at 450 / 750 nm (400k paths, se 0.3 / 0.6 %):
 #: +1.5 / +1.8 % with 32 x 12 nodes and 32 altitudes, +0.8 / +1.1 % with 64 x 48,
-#: +0.1 / +0.6 % with 96 x 72 and 48 altitudes (benchmarks/zenith_tables.py). About
+#: +0.1 / +0.6 % with 96 x 72 and 48 altitudes (notebooks/zenith_tables/). About
 #: 5 minutes per scene at 4 wavelengths, and several GB of memory (5.8 GB measured at 2
 #: wavelengths and 32 altitudes).
 CONVERGED = MarchSettings(exact=True, view_steps=128, table_altitudes=48, table_mu=96, table_phi=72,
@@ -66,7 +66,7 @@ CONVERGED = MarchSettings(exact=True, view_steps=128, table_altitudes=48, table_
 #: transported with each point's own sun angle (the presets and CONVERGED: orders 1-2,
 #: independent columns above) and 48 sun-angle nodes instead of 24. On the desert medium
 #: without its forward peak, 450 nm, sun at -4 degrees, 88/0 went from -7.4 % to -2.7 %
-#: against the MC (se 1.7 %; benchmarks/twilight_peak_or_solver.py). About 3x the
+#: against the MC (se 1.7 %; notebooks/twilight_accuracy/). About 3x the
 #: marcher's time of CONVERGED at -4 degrees.
 CONVERGED_TWILIGHT = replace(CONVERGED, spherical_orders=CONVERGED.max_orders, table_mus=48)
 
@@ -192,7 +192,8 @@ def main(argv=None):
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-twilight-check", dest="twilight_check", action="store_false")
     ap.add_argument("--mc-dir", default=None, help="store each scene's MC here (mc_<aerosol>_<elev>.npz) and reuse it")
-    ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "..", "docs", "accuracy.md"))
+    ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "..", "docs", "validation.md"),
+                    help="markdown whose section this run replaces (default docs/validation.md)")
     a = ap.parse_args(argv)
     if a.quick:
         a.paths_day, a.paths_twilight = 2000, 4000

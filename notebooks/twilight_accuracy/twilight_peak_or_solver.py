@@ -1,6 +1,6 @@
 """Twilight in dust: is the marcher's deficit at the horizon toward a sun below it in
-the forward peak, or in the multiple-scattering solver? (docs/accuracy.md, "Twilight,
-sun at -4 degrees, the horizon toward the sun").
+the forward peak, or in the multiple-scattering solver? (README.md beside
+it, "It is not the forward peak").
 
 Desert aerosol (month 6, its default AOD), 450 nm, sun at -4 degrees, four views toward
 the sun. Marcher and Monte Carlo tracer see two media:
@@ -15,7 +15,7 @@ The marcher runs at the Monte Carlo comparison's converged settings (``CONVERGED
 benchmarks/validate_montecarlo.py), and on the medium without the peak also with finer
 sun-angle tables and with the spherical transport for more orders.
 
-    nice -n 5 python benchmarks/twilight_peak_or_solver.py        # about 25 min on 2 cores
+    nice -n 5 python notebooks/twilight_accuracy/twilight_peak_or_solver.py        # about 25 min on 2 cores
 """
 
 from __future__ import annotations
@@ -28,8 +28,9 @@ from dataclasses import replace
 
 import numpy as np
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path[:0] = [_HERE, os.path.join(_HERE, "..")]
+#: the Monte Carlo comparison's settings and helpers live in benchmarks/validate_montecarlo.py
+_BENCHMARKS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "benchmarks")
+sys.path.insert(0, _BENCHMARKS)
 
 from validate_montecarlo import CONVERGED  # noqa: E402
 

@@ -1,7 +1,7 @@
 """Twilight in dust at the quality presets' settings: how far the presets are from the
 Monte Carlo tracer at the horizon toward a sun below it, and what every order of
 spherical transport with 48 sun nodes (the comparison's ``CONVERGED_TWILIGHT``) changes
-there (docs/accuracy.md, "Twilight, sun at -4 degrees, the horizon toward the sun").
+there (README.md beside it, "The presets at twilight").
 
 The scenes, views and bands of benchmarks/validate_montecarlo.py at sun -4 degrees, its
 MC runs (stored by ``validate_montecarlo.py --mc-dir DIR``, read here from the same DIR;
@@ -9,7 +9,7 @@ traced here with ``--paths`` paths where absent). Each preset is marched at the 
 directly (the image's direction grid and all), as it is and with
 ``spherical_orders=20, table_mus=48``.
 
-    nice -n 5 python benchmarks/twilight_presets.py --mc-dir DIR    # minutes with stored MC runs
+    nice -n 5 python notebooks/twilight_accuracy/twilight_presets.py --mc-dir DIR    # minutes with stored MC runs
 """
 
 from __future__ import annotations
@@ -22,8 +22,9 @@ from dataclasses import replace
 
 import numpy as np
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path[:0] = [_HERE, os.path.join(_HERE, "..")]
+#: the Monte Carlo comparison's settings and helpers live in benchmarks/validate_montecarlo.py
+_BENCHMARKS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "benchmarks")
+sys.path.insert(0, _BENCHMARKS)
 
 from common import git_revision  # noqa: E402
 from validate_montecarlo import (AEROSOLS, CONVERGED_TWILIGHT, SUN_AZIMUTH, VIEWS, profile_for,  # noqa: E402

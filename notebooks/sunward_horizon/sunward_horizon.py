@@ -1,6 +1,6 @@
 """The sky 2 and 10 degrees above a setting sun in desert dust: the marcher against the
-Monte Carlo tracer for several delta-M cone widths and table sizes (docs/accuracy.md,
-"The sunward horizon at sunset").
+Monte Carlo tracer for several delta-M cone widths and table sizes (README.md beside
+it).
 
 Desert aerosol (month 6, its default AOD), sun at 0 degrees elevation, azimuth 180,
 ground albedo 0 in both estimators, views 88/0 and 80/0 (zenith angle / azimuth from the
@@ -8,7 +8,7 @@ sun, degrees) at 450, 550, 650 and 750 nm. The marcher runs at the Monte Carlo
 comparison's converged settings (benchmarks/validate_montecarlo.py) with the cone and
 the zenith x azimuth table nodes of each row; the MC traces every order.
 
-    nice -n 10 python benchmarks/sunward_horizon.py            # prints the markdown table (about 15 min)
+    nice -n 10 python notebooks/sunward_horizon/sunward_horizon.py            # prints the markdown table (about 15 min)
 """
 
 from __future__ import annotations
@@ -21,8 +21,9 @@ from dataclasses import replace
 
 import numpy as np
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path[:0] = [_HERE, os.path.join(_HERE, "..")]
+#: the Monte Carlo comparison's settings and helpers live in benchmarks/validate_montecarlo.py
+_BENCHMARKS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "benchmarks")
+sys.path.insert(0, _BENCHMARKS)
 
 from validate_montecarlo import BANDS_NM, CONVERGED, SUN_AZIMUTH, profile_for  # noqa: E402
 

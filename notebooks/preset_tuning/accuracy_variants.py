@@ -1,8 +1,8 @@
 """Single-setting variants of a quality preset against the cached accuracy reference, at
-512x256 (the "Choosing the presets" table of docs/accuracy.md). Needs the reference of the
+512x256 (the table in README.md beside it). Needs the reference of the
 scene in the cache (run `skymodel bench accuracy` first).
 
-    nice -n 10 python benchmarks/accuracy_variants.py twilight
+    nice -n 10 python notebooks/preset_tuning/accuracy_variants.py twilight
 
 prints, for each variant, wall and CPU seconds, the mean and max relative radiance error
 and the mean CIEDE2000, exactly as `skymodel bench accuracy` computes them.

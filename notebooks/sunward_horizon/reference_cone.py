@@ -1,26 +1,22 @@
 """How far the accuracy bench's reference is from converged in the delta-M cone and the
 table nodes: the ``reference`` quality preset (12-degree cone, 48 x 16 zenith x azimuth
 table nodes, 32 altitudes) against the same with a 3-degree cone and 64 x 48 nodes (or
-the values given), every direction marched exactly, on the bench's rural sky (docs/accuracy.md, "The sunward horizon at sunset").
+the values given), every direction marched exactly, on the bench's rural sky (README.md beside it, "Is the bench reference converged?").
 
 Prints reference / narrow-cone - 1 (%) at 450, 550 and 650 nm for the sun at 60, 5 and
 -4 degrees: five views 2-15 degrees above the sun along its vertical, then the zenith,
 mid sky away from the sun, both horizons and the side.
 
-    nice -n 5 python benchmarks/reference_cone.py     # about 15 minutes on 2 cores
-    nice -n 5 python benchmarks/reference_cone.py --mu 96 --phi 72 --altitudes 48   # the MC comparison's tables
+    nice -n 5 python notebooks/sunward_horizon/reference_cone.py     # about 15 minutes on 2 cores
+    nice -n 5 python notebooks/sunward_horizon/reference_cone.py --mu 96 --phi 72 --altitudes 48   # the MC comparison's tables
 """
 
 from __future__ import annotations
 
 import argparse
-import os
-import sys
 from dataclasses import replace
 
 import numpy as np
-
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 
 from skymodel.validation.accuracy import atmosphere  # noqa: E402
 from skymodel.render.marcher import SkyMarcher  # noqa: E402

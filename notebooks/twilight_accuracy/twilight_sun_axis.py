@@ -1,5 +1,5 @@
 """Twilight: the multiple-scattering field's sun-angle axis against the Monte Carlo
-tracer (docs/accuracy.md, "Twilight, sun at -4 degrees").
+tracer (README.md beside it, "The sun-angle axis").
 
 A Rayleigh sky (location ``rural``, month 6, no aerosol: no delta-M truncation and no
 forward peak to blur the picture), sun at -4 degrees elevation, azimuth 180, six views,
@@ -10,8 +10,8 @@ with 24 to 192 sun nodes, reading the field between them log-linearly (the previ
 form) or with the cubic in log J (now). The MC traces every order, and first single
 scattering alone against the marcher's single scattering.
 
-    nice -n 5 python benchmarks/twilight_sun_axis.py              # about 20 min
-    nice -n 5 python benchmarks/twilight_sun_axis.py --mc-dir D   # keep / reuse the MC runs in D
+    nice -n 5 python notebooks/twilight_accuracy/twilight_sun_axis.py              # about 20 min
+    nice -n 5 python notebooks/twilight_accuracy/twilight_sun_axis.py --mc-dir D   # keep / reuse the MC runs in D
 """
 
 from __future__ import annotations
@@ -24,8 +24,9 @@ from dataclasses import replace
 
 import numpy as np
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path[:0] = [_HERE, os.path.join(_HERE, "..")]
+#: the Monte Carlo comparison's settings and helpers live in benchmarks/validate_montecarlo.py
+_BENCHMARKS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "benchmarks")
+sys.path.insert(0, _BENCHMARKS)
 
 from validate_montecarlo import CHUNK_PATHS, CONVERGED  # noqa: E402
 

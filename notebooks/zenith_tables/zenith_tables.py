@@ -1,5 +1,5 @@
 """The zenith's multiple scattering against the Monte Carlo tracer as the solver's tables
-grow (docs/accuracy.md, "Converged settings" in the Monte Carlo section).
+grow (README.md beside it).
 
 Rural aerosol at AOD 0.2 (month 6), sun at 20 degrees elevation, azimuth 180, ground
 albedo 0 in both estimators, zenith view, 450 and 750 nm. The marcher runs at the Monte
@@ -7,7 +7,7 @@ Carlo comparison's settings (benchmarks/validate_montecarlo.py) with the delta-M
 zenith x azimuth nodes and altitude nodes of each row; the MC traces every order (and,
 first, single scattering alone against the marcher's single scattering).
 
-    nice -n 5 python benchmarks/zenith_tables.py      # prints the markdown table (about 15 min)
+    nice -n 5 python notebooks/zenith_tables/zenith_tables.py      # prints the markdown table (about 15 min)
 """
 
 from __future__ import annotations
@@ -20,8 +20,9 @@ from dataclasses import replace
 
 import numpy as np
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path[:0] = [_HERE, os.path.join(_HERE, "..")]
+#: the Monte Carlo comparison's settings and helpers live in benchmarks/validate_montecarlo.py
+_BENCHMARKS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "benchmarks")
+sys.path.insert(0, _BENCHMARKS)
 
 from validate_montecarlo import CONVERGED  # noqa: E402
 
