@@ -1,8 +1,10 @@
 """The settings: a PropertyGroup on ``bpy.types.World.skymodel``.
 
 Angles are stored in radians (Blender's convention for ``subtype='ANGLE'``: the UI shows
-degrees) and converted to degrees for the core. Ranges match what the core accepts, so the
-UI cannot produce a value the core refuses; what it can still refuse (an unknown location
+degrees) and converted to degrees for the core. The properties of user parameters are made
+by :func:`registry_property` from the parameter registry (:mod:`skymodel.scene`: default,
+bounds, description) and the quality registry (:mod:`skymodel.render.quality`), so the UI
+cannot produce a value the core refuses; what it can still refuse (an unknown location
 name, a date that does not exist, a night-time date, a custom location without an
 aerosol type) is reported by the Build operator naming the parameter.
 """
@@ -13,6 +15,8 @@ import math
 
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
+
+from skymodel import scene
 
 from .physics import SkyParams
 
@@ -56,6 +60,84 @@ def _search_aerosol(self, context, edit_text):
 
 _DEG = math.pi / 180.0
 
+#: Labels of the stratospheric choices (the names are the registry's).
+_STRATOSPHERIC_LABELS = {"background": ("Background", "Background sulfate layer"),
+                         "volcanic": ("Volcanic", "After a large eruption"),
+                         "none": ("None", "No stratospheric aerosol")}
+
+
+def _quality_items() -> list[tuple]:
+    """The Quality enum from the quality registry (:mod:`skymodel.render.quality`)."""
+    from skymodel.render.quality import QUALITIES
+
+    return [(name, name.title(), f"{q.environment_width_px}x{q.environment_width_px // 2}, "
+             f"{q.wavelength_step_nm:g} nm: {q.purpose}") for name, q in QUALITIES.items()]
+
+
+def _stratospheric_items() -> list[tuple]:
+    return [(c, *_STRATOSPHERIC_LABELS.get(c, (c.title(), c))) for c in scene.parameter("stratospheric").choices]
+
+
+#: Properties made from the parameter registry: property name -> (registry name, Blender label,
+#: Blender-only keywords). Defaults, bounds and descriptions come from :mod:`skymodel.scene`.
+REGISTRY_PROPERTIES = {
+    "location": ("location", "Preset", {"search": _search_location, "search_options": {'SORT'}}),
+    "latitude": ("latitude", "Latitude", {"subtype": 'ANGLE', "unit": 'ROTATION', "precision": 3}),
+    "longitude": ("longitude", "Longitude", {"subtype": 'ANGLE', "unit": 'ROTATION', "precision": 3}),
+    "month": ("month", "Month", {}),
+    "year": ("year", "Year", {}),
+    "day": ("day", "Day", {}),
+    "hour": ("hour", "Hour (UTC)", {}),
+    "minute": ("minute", "Minute", {}),
+    "sun_elevation": ("sun_elevation", "Sun Elevation", {"subtype": 'ANGLE', "unit": 'ROTATION', "precision": 2}),
+    "sun_azimuth": ("sun_azimuth", "Sun Azimuth", {"subtype": 'ANGLE', "unit": 'ROTATION', "precision": 2}),
+    "aod550": ("aod550", "AOD 550 nm", {"precision": 3}),
+    "turbidity": ("turbidity", "Turbidity", {"precision": 2}),
+    "stratospheric": ("stratospheric", "Stratosphere", {"items": _stratospheric_items}),
+    "ozone_du": ("ozone_du", "Ozone", {"precision": 1}),
+    "albedo": ("albedo", "Albedo", {"subtype": 'FACTOR'}),
+    "observer_altitude": ("observer_altitude", "Observer Altitude", {"subtype": 'DISTANCE', "unit": 'LENGTH'}),
+    "quality": ("quality", "Quality", {"items": _quality_items}),
+    "image_width": ("environment_width", "Image Width", {}),
+    "n_layers": ("volume_layers", "Volume Layers", {}),
+}
+
+
+def registry_property(prop_name: str):
+    """The bpy property of ``prop_name`` (a key of :data:`REGISTRY_PROPERTIES`), built now
+    from the registry entry: default (or the entry's ``suggested`` value for a field that
+    is switched off by default), hard and soft bounds, description with the range. Angles
+    (``subtype='ANGLE'``) are converted to radians; an azimuth is offered over one turn;
+    an exclusive minimum becomes the minimum plus one unit (Blender fields cannot exclude
+    a bound)."""
+    name, label, ui = REGISTRY_PROPERTIES[prop_name]
+    p = scene.parameter(name)
+    ui = dict(ui)
+    text = p.help[:1].upper() + p.help[1:] + f" ({p.range_text()})"
+    if "items" in ui:
+        items = ui.pop("items")()
+        return EnumProperty(name=label, description=text, items=items, default=p.default, **ui)
+    if not p.is_number:
+        return StringProperty(name=label, description=text, default=p.default or "", **ui)
+    value = p.default if p.default is not None else p.suggested
+    lo, hi = p.minimum, p.maximum
+    if p.exclusive_minimum:
+        lo = lo + 1
+    if p.integer:
+        kw = {"min": int(lo), "max": int(hi), "default": int(value)}
+        if p.soft_maximum is not None:
+            kw["soft_max"] = int(p.soft_maximum)
+        return IntProperty(name=label, description=text, **kw, **ui)
+    scale = _DEG if ui.get("subtype") == 'ANGLE' else 1.0
+    if name == "sun_azimuth":  # one turn in the UI; the core takes any azimuth modulo 360
+        lo, hi = max(lo, 0.0), min(hi, 360.0)
+    kw = {"min": lo * scale, "max": hi * scale, "default": float(value or 0.0) * scale}
+    if p.soft_minimum is not None:
+        kw["soft_min"] = p.soft_minimum * scale
+    if p.soft_maximum is not None:
+        kw["soft_max"] = p.soft_maximum * scale
+    return FloatProperty(name=label, description=text, **kw, **ui)
+
 #: Auto mode's per-effect override choices.
 _OVERRIDE_ITEMS = [("AUTO", "Auto", "As the effect planner decides"), ("ON", "On", "Always simulate it"),
                    ("OFF", "Off", "Never simulate it")]
@@ -68,33 +150,22 @@ class SkymodelSettings(bpy.types.PropertyGroup):
         items=[("PRESET", "Preset", "A named location (sets latitude, longitude, aerosol type and ground)"),
                ("CUSTOM", "Custom", "Your own latitude and longitude (choose an aerosol type too)")],
         default="PRESET")
-    location: StringProperty(
-        name="Preset", description="Location preset (skymodel/data/presets/locations.toml)", default="rural",
-        search=_search_location, search_options={'SORT'})
-    latitude: FloatProperty(
-        name="Latitude", description="Degrees north (Custom location; the preset's otherwise)",
-        subtype='ANGLE', unit='ROTATION', min=-90 * _DEG, max=90 * _DEG, default=45 * _DEG, precision=3)
-    longitude: FloatProperty(
-        name="Longitude", description="Degrees east (Custom location)",
-        subtype='ANGLE', unit='ROTATION', min=-180 * _DEG, max=180 * _DEG, default=0.0, precision=3)
+    location: registry_property("location")
+    latitude: registry_property("latitude")
+    longitude: registry_property("longitude")
     # ---- when / sun
     sun_source: EnumProperty(
         name="Sun", description="Place the sun directly, or from a date and time at the location",
         items=[("ANGLES", "Elevation / Azimuth", "Give the sun's elevation and azimuth"),
                ("TIME", "Date and Time", "The core places the sun for the date and UTC time at the location")],
         default="ANGLES")
-    month: IntProperty(name="Month", description="Month 1..12 (ozone climatology; and the date's month)",
-                       min=1, max=12, default=6)
-    year: IntProperty(name="Year", min=1900, max=2100, default=2026)
-    day: IntProperty(name="Day", description="Day of the month", min=1, max=31, default=21)
-    hour: IntProperty(name="Hour (UTC)", description="Hour, UTC", min=0, max=23, default=12)
-    minute: IntProperty(name="Minute", min=0, max=59, default=0)
-    sun_elevation: FloatProperty(
-        name="Sun Elevation", description="Angle of the sun's centre above the horizon (-12° = end of civil dusk)",
-        subtype='ANGLE', unit='ROTATION', min=-12 * _DEG, max=90 * _DEG, default=25 * _DEG, precision=2)
-    sun_azimuth: FloatProperty(
-        name="Sun Azimuth", description="Clockwise from north (+Y): east (+X) = 90°, south = 180°",
-        subtype='ANGLE', unit='ROTATION', min=0.0, max=360 * _DEG, default=180 * _DEG, precision=2)
+    month: registry_property("month")
+    year: registry_property("year")
+    day: registry_property("day")
+    hour: registry_property("hour")
+    minute: registry_property("minute")
+    sun_elevation: registry_property("sun_elevation")
+    sun_azimuth: registry_property("sun_azimuth")
     # ---- air
     aerosol: StringProperty(
         name="Aerosol", description="Tropospheric aerosol type; 'location' = the preset's, 'none' = clean air",
@@ -105,27 +176,16 @@ class SkymodelSettings(bpy.types.PropertyGroup):
                ("AOD", "AOD 550 nm", "Aerosol optical depth at 550 nm"),
                ("TURBIDITY", "Turbidity", "(tau_Rayleigh + tau_aerosol) / tau_Rayleigh at 550 nm")],
         default="DEFAULT")
-    aod550: FloatProperty(name="AOD 550 nm", description="Aerosol optical depth at 550 nm",
-                          min=0.0, max=10.0, soft_max=2.0, default=0.2, precision=3)
-    turbidity: FloatProperty(name="Turbidity", description="Linke-style turbidity at 550 nm",
-                             min=1.0, max=64.0, soft_max=10.0, default=2.5, precision=2)
-    stratospheric: EnumProperty(
-        name="Stratosphere", description="Stratospheric aerosol",
-        items=[("background", "Background", "Background sulfate layer"),
-               ("volcanic", "Volcanic", "After a large eruption"),
-               ("none", "None", "No stratospheric aerosol")],
-        default="background")
+    aod550: registry_property("aod550")
+    turbidity: registry_property("turbidity")
+    stratospheric: registry_property("stratospheric")
     use_ozone: BoolProperty(name="Override Ozone", description="Give the total ozone column yourself",
                             default=False)
-    ozone_du: FloatProperty(name="Ozone", description="Total ozone column in Dobson units",
-                            min=1.0, max=1000.0, soft_min=100.0, soft_max=500.0, default=300.0, precision=1)
+    ozone_du: registry_property("ozone_du")
     use_albedo: BoolProperty(name="Override Albedo", description="Give the ground albedo yourself",
                              default=False)
-    albedo: FloatProperty(name="Albedo", description="Ground albedo (Lambertian, grey)", subtype='FACTOR',
-                          min=0.0, max=1.0, default=0.2)
-    observer_altitude: FloatProperty(
-        name="Observer Altitude", description="Height of the viewpoint above the ground (Environment mode)",
-        subtype='DISTANCE', unit='LENGTH', min=0.0, max=100_000.0, soft_max=20_000.0, default=0.0)
+    albedo: registry_property("albedo")
+    observer_altitude: registry_property("observer_altitude")
     # ---- how
     mode: EnumProperty(
         name="Mode", description="How the sky enters the scene",
@@ -144,15 +204,9 @@ class SkymodelSettings(bpy.types.PropertyGroup):
                ("blender", "Blender Sky Texture", "Blender's own Sky Texture node (Multiple Scattering) with "
                 "matched air, aerosol and ozone densities; lamp and exposure from Skymodel")],
         default="ours")
-    quality: EnumProperty(
-        name="Quality", description="Accuracy of the spectral render (and image size)",
-        items=[("preview", "Preview", "512x256, 10 nm"), ("final", "Final", "1024x512, 5 nm"),
-               ("reference", "Reference", "2048x1024, 5 nm, tight tolerances")],
-        default="preview")
-    image_width: IntProperty(name="Image Width", description="Environment image width in pixels "
-                             "(0: by quality; height = width / 2)", min=0, max=8192, soft_max=4096, default=0)
-    n_layers: IntProperty(name="Volume Layers", description="Nested atmosphere layers (Volumetric mode)",
-                          min=1, max=24, soft_max=16, default=8)
+    quality: registry_property("quality")
+    image_width: registry_property("image_width")
+    n_layers: registry_property("n_layers")
     volume_bounces: IntProperty(name="Volume Bounces", description="Cycles volume bounces (Volumetric mode; "
                                 "0 = single scattering)", min=0, max=64, default=8)
     # ---- Auto mode: the effect planner (skymodel.planner) and the user's overrides
@@ -175,7 +229,7 @@ class SkymodelSettings(bpy.types.PropertyGroup):
     override_sun_disc: EnumProperty(name="Sun Disc", items=_OVERRIDE_ITEMS, default="AUTO")
     override_aerial_perspective: EnumProperty(name="Volume Shells", items=_OVERRIDE_ITEMS, default="AUTO")
     override_n_layers: IntProperty(name="Shell Layers", description="Volume layers in Auto mode (0: the planner's)",
-                                   min=0, max=24, default=0)
+                                   min=0, max=scene.parameter("volume_layers").maximum, default=0)
     pack_image: BoolProperty(name="Pack Image", description="Pack the sky image into the .blend file",
                              default=False)
     set_exposure: BoolProperty(name="Set Exposure", description="Set the view transform (AgX) and the "
