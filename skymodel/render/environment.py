@@ -1,0 +1,371 @@
+"""Equirectangular environment maps: the sky rendered for a renderer's world background.
+
+An environment map is the sky of one atmosphere and sun as a scene-linear Rec.709 image
+(an OpenEXR file), with the numbers a renderer needs next to it: the strength and colour
+of a sun lamp and the exposure of the incident-light rule. The Blender add-on uses it for
+its Environment mode; nothing here is specific to Blender.
+
+Colour scale
+    Scene-linear Rec.709 computed from spectra with the CIE 1931 2-degree observer:
+    ``RGB = M_709 @ integral(L(lambda) * (xbar, ybar, zbar) dlambda)`` with L in
+    W m^-2 sr^-1 nm^-1 (:func:`skymodel.colorimetry.spectral_to_rgb`). The luminance of that
+    RGB (0.2126 R + 0.7152 G + 0.0722 B) is therefore ``Y = integral(L ybar dlambda)`` in
+    W m^-2 sr^-1 of ybar-weighted radiance: **1.0 in a pixel = 683 cd m^-2**. A sun lamp
+    uses the same scale for irradiance: strength ``E_Y = integral(E ybar dlambda)`` in
+    W m^-2, so **1.0 of sun strength = 683 lux**, and a white Lambertian plate facing the
+    sun renders at ``E_Y / pi``, the same scale as the sky around it. The lamp colour is
+    ``RGB(E) / E_Y`` (luminance 1).
+
+Orientation
+    +X east, +Y north, +Z up; azimuth clockwise from north (east 90). The image is
+    rendered with the equirectangular camera centred on azimuth 90 (east, +X), azimuth
+    increasing to the right (:func:`environment_camera`): where Blender's Environment
+    Texture puts the image centre, so no texture rotation is needed there.
+
+Exposure (the "incident-light meter" rule)
+    ``exposure = log2(pi / E_h)`` where ``E_h`` is the horizontal illuminance at the
+    observer in the scale above (direct sun ``E_Y sin(elevation)`` plus the sky's diffuse
+    ``sum(Y cos(zenith) dOmega)`` over the upper hemisphere, sun disc excluded). A white
+    horizontal Lambertian surface then displays at scene value 1.0 and an 18 % grey card at
+    0.18, at noon and at dusk alike.
+
+Cache
+    :func:`render_environment` writes ``sky-<key>.exr`` and ``sky-<key>.json`` (the lamp and
+    exposure numbers) into a cache folder, ``<key>`` being a hash of every input that changes
+    the image (:func:`cache_key`); a second call with the same inputs reads them back.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import os
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+import skymodel
+from skymodel import colorimetry
+from skymodel import sun as sun_module
+from skymodel.render import image_io
+from skymodel.render import sky as render_sky
+from skymodel.render.cameras import make_camera
+from skymodel.render.quality import QUALITIES
+from skymodel.wavelengths import default_wavelengths
+
+#: Bump when the meaning of a cached file changes.
+CACHE_FORMAT = 1
+#: Image width by quality (height = width / 2): the quality registry's.
+IMAGE_WIDTH = {name: q.environment_width_px for name, q in QUALITIES.items()}
+#: Wavelength step (nm) of the spectral render by quality: the quality registry's.
+WAVELENGTH_STEP_NM = {name: q.wavelength_step_nm for name, q in QUALITIES.items()}
+#: Rec.709 luminance weights (Blender's scene-linear luminance).
+LUMA_709 = np.array([0.2126, 0.7152, 0.0722])
+#: Azimuth (degrees clockwise from north) at the centre of the image: east, +X.
+CENTER_AZIMUTH_DEG = 90.0
+#: The sky model rendered by this module's own marcher; others come through ``model_radiance``.
+OWN_MODEL = "ours"
+
+
+# --------------------------------------------------------------------------- colour and exposure
+
+
+def spectrum_rgb(spectrum, wavelengths_nm) -> np.ndarray:
+    """Scene-linear Rec.709 of spectra (last axis wavelength) in the scale of the module doc."""
+    return np.asarray(colorimetry.spectral_to_rgb(spectrum, wavelengths_nm, "rec709"), dtype=float)
+
+
+def fit_into_gamut(rgb: np.ndarray) -> np.ndarray:
+    """Move colours with a negative channel toward the grey of the same luminance just
+    enough to make every channel >= 0 (luminance is kept; negative light would make a
+    renderer subtract energy). Colours already in gamut are unchanged."""
+    rgb = np.asarray(rgb, dtype=float)
+    y = rgb @ LUMA_709
+    lo = rgb.min(axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(lo < 0.0, y / (y - lo), 1.0)
+    s = np.clip(np.nan_to_num(s, nan=0.0), 0.0, 1.0)
+    out = y[..., None] + (rgb - y[..., None]) * s[..., None]
+    return np.where((y > 0.0)[..., None], np.maximum(out, 0.0), 0.0)
+
+
+def reduce_to_rgb(radiance, wavelengths_nm) -> np.ndarray:
+    """Spectral radiance (..., n_wl) -> in-gamut scene-linear Rec.709 (..., 3)."""
+    return fit_into_gamut(spectrum_rgb(radiance, wavelengths_nm))
+
+
+def sun_lamp(irradiance, wavelengths_nm) -> tuple[float, tuple]:
+    """(strength W m^-2 (ybar-weighted), colour with luminance 1) of a spectral irradiance."""
+    rgb = reduce_to_rgb(irradiance, wavelengths_nm)
+    y = float(rgb @ LUMA_709)
+    if not y > 0.0:
+        return 0.0, (1.0, 1.0, 1.0)
+    return y, tuple(float(c) for c in rgb / y)
+
+
+def horizontal_illuminance(rgb_image, camera, sun_strength: float, sun_elevation_deg: float) -> float:
+    """E_h: direct sun on a horizontal plane plus the sky's diffuse part (upper hemisphere)."""
+    dirs, valid = camera.directions()
+    omega = camera.pixel_solid_angles()
+    y = np.asarray(rgb_image, float) @ LUMA_709
+    cos_z = dirs[..., 2]
+    up = valid & (cos_z > 0)
+    diffuse = float(np.sum(np.where(up, y * cos_z * omega, 0.0)))
+    return diffuse + sun_strength * max(math.sin(math.radians(sun_elevation_deg)), 0.0)
+
+
+def exposure_from_illuminance(e_h: float) -> float:
+    """Exposure (stops) of the incident-light rule: ``log2(pi / E_h)``, in [-32, 32]."""
+    if not e_h > 0.0 or not math.isfinite(e_h):
+        return 0.0
+    return float(min(max(math.log2(math.pi / e_h), -32.0), 32.0))
+
+
+# --------------------------------------------------------------------------- inputs
+
+
+def environment_camera(width: int, n_wavelengths: int | None = None):
+    """The equirectangular camera of an environment map, centred on azimuth 90 (east)."""
+    return make_camera("equirectangular", int(width), center_azimuth_deg=CENTER_AZIMUTH_DEG,
+                       n_wavelengths=n_wavelengths)
+
+
+def image_width(width: int, quality: str) -> int:
+    """The image width: ``width`` or, when 0, the quality's; at least 16 and even."""
+    w = int(width) or IMAGE_WIDTH[quality]
+    w = max(16, w)
+    return w + (w % 2)
+
+
+def profile_at_distance(atmosphere, wavelengths_nm, earth_sun_distance_au: float = 1.0):
+    """The atmosphere's optical profile, its solar spectrum scaled to the Earth-sun distance."""
+    prof = atmosphere.optical_profile(wavelengths_nm)
+    if earth_sun_distance_au != 1.0:
+        prof = dataclasses.replace(prof, solar_irradiance=prof.solar_irradiance / earth_sun_distance_au**2)
+    return prof
+
+
+def sun_angular_diameter_deg(earth_sun_distance_au: float = 1.0) -> float:
+    """Apparent diameter of the sun (degrees) at that distance."""
+    return 2.0 * float(sun_module.sun_angular_radius_deg(earth_sun_distance_au))
+
+
+def _atmosphere_dict(atm) -> dict:
+    out = {}
+    for f in dataclasses.fields(atm):
+        v = getattr(atm, f.name)
+        out[f.name] = round(v, 9) if isinstance(v, float) else v
+    return out
+
+
+def cache_key(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: float, earth_sun_distance_au: float,
+              observer_altitude_m: float, quality: str, kind: str, **extra) -> str:
+    """SHA-256 (first 20 hex digits) of every input that changes the result."""
+    desc = {
+        "format": CACHE_FORMAT,
+        "kind": kind,
+        "core_version": getattr(skymodel, "__version__", "?"),
+        "atmosphere": _atmosphere_dict(atmosphere),
+        "sun_elevation_deg": round(sun_elevation_deg, 6),
+        "sun_azimuth_deg": round(sun_azimuth_deg, 6),
+        "earth_sun_distance_au": round(earth_sun_distance_au, 7),
+        "observer_altitude_m": round(float(observer_altitude_m), 3),
+        "quality": quality,
+        **extra,
+    }
+    text = json.dumps(desc, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:20]
+
+
+def default_cache_dir() -> Path:
+    """``$SKYMODEL_CACHE_DIR``, else ``<temp>/skymodel-cache``."""
+    env = os.environ.get("SKYMODEL_CACHE_DIR")
+    if env:
+        return Path(env)
+    return Path(tempfile.gettempdir()) / "skymodel-cache"
+
+
+def _write_json_atomic(path: Path, data: dict) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            json.dump(data, f, indent=1, sort_keys=True)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+class _Orders:
+    """Adapts the marcher's per-order callback to a text progress callback."""
+
+    def __init__(self, progress):
+        self.progress = progress
+
+    def __call__(self, n, size):
+        if self.progress:
+            self.progress(f"scattering order {n} (adds {size:.2%})")
+
+
+# --------------------------------------------------------------------------- the map
+
+
+@dataclass
+class EnvironmentMap:
+    """A rendered (or cached) environment map: the EXR's path and the lamp and exposure numbers.
+
+    ``sun_strength`` [W m^-2, ybar-weighted], ``sun_colour`` (luminance 1), ``sun_angle_deg``
+    (apparent diameter), ``exposure`` [stops]; ``info`` holds the render's statistics."""
+
+    image_path: str
+    cache_hit: bool
+    sun_elevation_deg: float
+    sun_azimuth_deg: float
+    sun_strength: float
+    sun_colour: tuple
+    sun_angle_deg: float
+    exposure: float
+    info: dict = field(default_factory=dict)
+
+    def lamp(self) -> dict:
+        """The sun lamp and exposure numbers (what the cache's JSON holds as ``result``)."""
+        return {k: getattr(self, k) for k in ("sun_elevation_deg", "sun_azimuth_deg", "sun_strength",
+                                              "sun_colour", "sun_angle_deg", "exposure")}
+
+
+def _read_cached(exr: Path, meta: Path, progress) -> EnvironmentMap | None:
+    if not (exr.is_file() and meta.is_file()):
+        return None
+    try:
+        with open(meta, encoding="utf-8") as f:
+            m = json.load(f)
+        env = EnvironmentMap(image_path=str(exr), cache_hit=True, **m["result"])
+        env.info = dict(m.get("info", {}), cache="hit")
+    except (OSError, ValueError, KeyError, TypeError):
+        return None  # a damaged cache entry is rebuilt
+    if progress:
+        progress(f"reusing cached sky {exr.name}")
+    return env
+
+
+def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: float, *,
+                       earth_sun_distance_au: float = 1.0, observer_altitude_m: float = 0.0,
+                       quality: str = "preview", width: int = 0, wavelength_step_nm: float | None = None,
+                       orders: int | None = None, earth_shadow: bool = True, include_sun: bool = False,
+                       time_iso: str | None = None, sky_model: str = OWN_MODEL, model_radiance=None,
+                       cache_dir=None, progress=None):
+    """Render (or reuse) the equirectangular sky of ``atmosphere`` and the sun.
+
+    Parameters
+    ----------
+    atmosphere : skymodel.optics.atmosphere.Atmosphere
+    sun_elevation_deg, sun_azimuth_deg : float
+        Sun position [degrees], azimuth clockwise from north.
+    earth_sun_distance_au : float
+        Scales the solar spectrum [AU].
+    observer_altitude_m : float
+        [m] above the ground.
+    quality : str
+        ``preview``, ``final`` or ``reference`` (the marcher's preset, and the default
+        width and wavelength step: :data:`IMAGE_WIDTH`, :data:`WAVELENGTH_STEP_NM`).
+    width : int
+        Image width [px]; 0 = by quality.
+    wavelength_step_nm, orders, earth_shadow
+        Override the quality's wavelength step [nm], highest scattering order (0 = until
+        converged) and Earth's shadow (the effect planner's choices); None = the quality's.
+    include_sun : bool
+        Draw the sun disc into the image.
+    time_iso : str or None
+        Recorded in ``info``.
+    sky_model, model_radiance
+        Another sky model than ours: its name (part of the cache key) and
+        ``model_radiance(camera, wavelengths_nm, include_sun) -> (radiance (H, W, n_wl),
+        direct sun irradiance (n_wl,))`` in W m^-2 sr^-1 nm^-1 and W m^-2 nm^-1.
+    cache_dir : path or None
+        Where the EXR and its JSON go (:func:`default_cache_dir` when None).
+    progress : callable or None
+        Called with one line of text per stage.
+
+    Returns
+    -------
+    (rgb, EnvironmentMap)
+        ``rgb`` (H, W, 3) float32 scene-linear Rec.709, None on a cache hit.
+    """
+    if sky_model != OWN_MODEL and model_radiance is None:
+        raise ValueError(f"sky model {sky_model!r} needs model_radiance")
+    width = image_width(width, quality)
+    step = float(wavelength_step_nm or WAVELENGTH_STEP_NM[quality])
+    planned = {"orders": orders, "earth_shadow": earth_shadow} if (orders is not None or not earth_shadow) else {}
+    key = cache_key(atmosphere, sun_elevation_deg, sun_azimuth_deg, earth_sun_distance_au, observer_altitude_m,
+                    quality, "environment", width=width, wavelength_step_nm=step, include_sun=bool(include_sun),
+                    **({"sky_model": sky_model} if sky_model != OWN_MODEL else {}), **planned)
+    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    exr = folder / f"sky-{key}.exr"
+    meta = folder / f"sky-{key}.json"
+    cached = _read_cached(exr, meta, progress)
+    if cached is not None:
+        return None, cached
+    t0 = time.perf_counter()
+    wl = default_wavelengths(step)
+    if progress:
+        progress(f"optical profile: {len(wl)} wavelengths")
+    prof = profile_at_distance(atmosphere, wl, earth_sun_distance_au)
+    # Our sky without the disc is rendered band by band straight to RGB, so only three
+    # values per pixel are kept (a 2048x1024 image at 81 wavelengths would otherwise hold
+    # a 1.4 GB spectral cube plus its working copies); the memory guard counts that.
+    banded = sky_model == OWN_MODEL and not include_sun
+    cam = environment_camera(width, n_wavelengths=3 if banded else wl.size)
+    if progress:
+        progress(f"spectral render {cam.width}x{cam.height}, quality {quality}")
+    if sky_model == OWN_MODEL:
+        settings = quality
+        if planned:  # the planner's orders and Earth's shadow on the quality's settings
+            settings = dataclasses.replace(render_sky.quality_settings(quality),
+                                           orders=int(orders) or None if orders is not None else None,
+                                           earth_shadow=bool(earth_shadow))
+        if banded:
+            rgb, sun_irradiance, _ = render_sky.render_sky_reduced(
+                prof, cam, sun_elevation_deg, reduce_to_rgb, 3, sun_azimuth_deg, observer_altitude_m, settings,
+                progress=_Orders(progress))
+        else:
+            img = render_sky.render_sky(prof, cam, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
+                                        include_sun=include_sun, progress=_Orders(progress))
+            rgb, sun_irradiance = reduce_to_rgb(img.radiance, wl), img.sun_irradiance
+    else:
+        radiance, sun_irradiance = model_radiance(cam, wl, include_sun)
+        rgb = reduce_to_rgb(radiance, wl)
+    strength, colour = sun_lamp(sun_irradiance, wl)
+    e_h = horizontal_illuminance(rgb, cam, strength, sun_elevation_deg)
+    if not np.all(np.isfinite(rgb)):
+        raise FloatingPointError("sky image: non-finite values")
+    luma = rgb @ LUMA_709
+    h = rgb.shape[0]
+    env = EnvironmentMap(image_path=str(exr), cache_hit=False, sun_elevation_deg=sun_elevation_deg,
+                         sun_azimuth_deg=sun_azimuth_deg, sun_strength=strength, sun_colour=list(colour),
+                         sun_angle_deg=sun_angular_diameter_deg(earth_sun_distance_au),
+                         exposure=exposure_from_illuminance(e_h))
+    info = {
+        "render_s": round(time.perf_counter() - t0, 3),
+        "size": f"{cam.width}x{cam.height}",
+        "wavelengths": int(wl.size),
+        "horizontal_illuminance_Y": e_h,
+        "zenith_Y": float(luma[0].mean()),
+        "horizon_Y": float(luma[h // 2 - 1].mean()),
+        "atmosphere": {k: v for k, v in prof.metadata.items() if isinstance(v, (str, int, float, type(None)))},
+        "time_utc": time_iso,
+        "cache_key": key,
+        "sky_model": sky_model,
+    }
+    if progress:
+        progress(f"writing {exr}")
+    image_io.write_exr(exr, rgb.astype(np.float32), chromaticities=image_io.CHROMATICITIES["rec709"],
+                       attributes={"skymodel": json.dumps({"cache_key": key, "units": "Y = 1 <=> 683 cd/m2"})})
+    _write_json_atomic(meta, {"result": env.lamp(), "info": info})
+    env.info = dict(info, cache="miss")
+    return rgb.astype(np.float32), env

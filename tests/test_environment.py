@@ -1,0 +1,67 @@
+"""skymodel.render.environment: the equirectangular environment map, its lamp and exposure
+numbers and its cache (no Blender)."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from skymodel.optics.atmosphere import Atmosphere
+from skymodel.render import environment
+
+
+@pytest.fixture(scope="module")
+def atmosphere():
+    return Atmosphere(location="rural", month=6)
+
+
+def test_camera_is_centred_on_east():
+    cam = environment.environment_camera(64)
+    dirs, valid = cam.directions()
+    centre = dirs[cam.height // 2 - 1:cam.height // 2 + 1, cam.width // 2 - 1:cam.width // 2 + 1].mean(axis=(0, 1))
+    assert centre[0] > 0.99  # +X is east
+    assert dirs[0, :, 2].min() > 0.99  # the top row looks up
+
+
+def test_width_by_quality_and_even():
+    assert environment.image_width(0, "preview") == environment.IMAGE_WIDTH["preview"]
+    assert environment.image_width(33, "final") == 34
+    assert environment.image_width(4, "final") == 16
+
+
+def test_render_then_cache_hit(atmosphere, tmp_path):
+    lines = []
+    rgb, env = environment.render_environment(atmosphere, 20.0, 135.0, width=32, cache_dir=tmp_path,
+                                              progress=lines.append)
+    assert rgb.shape == (16, 32, 3) and rgb.dtype == np.float32 and np.all(rgb >= 0)
+    assert not env.cache_hit and env.info["cache"] == "miss"
+    assert 0 < env.sun_strength < 200 and env.sun_colour[1] > 0
+    assert env.exposure == pytest.approx(environment.exposure_from_illuminance(env.info["horizontal_illuminance_Y"]))
+    meta = json.loads((tmp_path / f"sky-{env.info['cache_key']}.json").read_text())
+    assert meta["result"] == env.lamp()
+    assert any(line.startswith("writing") for line in lines)
+    again, hit = environment.render_environment(atmosphere, 20.0, 135.0, width=32, cache_dir=tmp_path)
+    assert again is None and hit.cache_hit and hit.image_path == env.image_path
+    assert hit.lamp() == env.lamp()
+    # another input, another key
+    _, other = environment.render_environment(atmosphere, 20.0, 135.0, width=32, include_sun=True, cache_dir=tmp_path)
+    assert other.info["cache_key"] != env.info["cache_key"]
+
+
+def test_another_model_comes_through_model_radiance(atmosphere, tmp_path):
+    def flat(camera, wavelengths_nm, include_sun):
+        dirs, valid = camera.directions()
+        return np.full(valid.shape + (len(wavelengths_nm),), 0.01), np.full(len(wavelengths_nm), 1.0)
+
+    rgb, env = environment.render_environment(atmosphere, 30.0, 180.0, width=32, sky_model="flat",
+                                              model_radiance=flat, cache_dir=tmp_path)
+    assert np.allclose(rgb, rgb[0, 0]) and env.info["sky_model"] == "flat"
+    with pytest.raises(ValueError, match="model_radiance"):
+        environment.render_environment(atmosphere, 30.0, 180.0, width=32, sky_model="flat", cache_dir=tmp_path)
+
+
+def test_imports_no_blender():
+    code = "import sys, skymodel.render.environment; assert 'bpy' not in sys.modules and 'blender_addon' not in sys.modules"
+    subprocess.run([sys.executable, "-c", code], check=True)
