@@ -1,17 +1,21 @@
 """Build the Blender extension zip(s) of skymodel.
 
     python blender_addon/build_extension.py                 # download wheels, stage, build, validate
-    python blender_addon/build_extension.py --no-download   # wheels already in ./wheels/
+    python blender_addon/build_extension.py --no-download   # dependency wheels already in ./wheels/
     python blender_addon/build_extension.py --no-split      # one zip for every platform
 
 Steps
 1. ``pip download --only-binary=:all: --python-version 3.11 --platform <tag> --no-deps``
    of every wheel in :data:`WHEELS` into ``<repo>/wheels/`` (files already there are kept).
-2. Stage ``build/extension/``: the add-on package (``blender_addon/*.py`` without this
-   script) at the root, the ``skymodel`` core vendored as the sub-package ``skymodel/``,
-   the data ``presets/`` next to it (the core finds them as ``<package>/../presets``),
-   ``blender_manifest.toml`` and ``wheels/``.
-3. ``blender_ext.py build --split-platforms`` (Blender's own tool, shipped in the ``bpy``
+2. The core: ``pip wheel --no-deps`` of the repository (a clean copy of ``pyproject.toml``,
+   ``README.md`` and ``skymodel/``, so no stale build output slips in) into ``wheels/``:
+   pure Python, its data tables inside (:func:`core_wheel_name`). Blender installs an
+   extension's wheels into its site-packages, so the add-on imports ``skymodel`` there as
+   it does from a checkout. Always rebuilt; with ``--no-download`` pip still needs the
+   build backend (setuptools) from its index or cache.
+3. Stage ``build/extension/``: the add-on package (``blender_addon/*.py`` without this
+   script) at the root, ``blender_manifest.toml`` and ``wheels/``.
+4. ``blender_ext.py build --split-platforms`` (Blender's own tool, shipped in the ``bpy``
    wheel at ``bpy/<version>/scripts/addons_core/bl_pkg/cli/blender_ext.py``, or give
    ``--blender-ext``) into ``dist/``, then ``blender_ext.py validate`` on every zip.
 
@@ -28,6 +32,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import tomllib
 from pathlib import Path
 
@@ -50,12 +55,25 @@ WHEELS = {
 
 #: What goes into the staged extension besides the manifest and the wheels.
 ADDON_EXCLUDE = {"build_extension.py"}
-CORE_EXCLUDE_DIRS = {"__pycache__"}
+#: What the core's wheel is built from (copied to a clean folder first).
+CORE_SOURCES = ("pyproject.toml", "README.md", "skymodel")
+
+
+def read_pyproject(path: Path = ROOT / "pyproject.toml") -> dict:
+    with open(path, "rb") as f:
+        return tomllib.load(f)
+
+
+def core_wheel_name() -> str:
+    """File name of the core's wheel (pure Python): ``skymodel-<version>-py3-none-any.whl``."""
+    project = read_pyproject()["project"]
+    return f"{project['name'].replace('-', '_')}-{project['version']}-py3-none-any.whl"
 
 
 def manifest_wheel_paths() -> list[str]:
-    """The ``wheels`` list the manifest must carry (sorted)."""
-    return sorted(f"./wheels/{name}" for plats in WHEELS.values() for _tag, name in plats.values())
+    """The ``wheels`` list the manifest must carry (sorted): the dependencies and the core."""
+    names = [name for plats in WHEELS.values() for _tag, name in plats.values()] + [core_wheel_name()]
+    return sorted(f"./wheels/{name}" for name in names)
 
 
 def read_manifest(path: Path = ROOT / "blender_manifest.toml") -> dict:
@@ -90,6 +108,36 @@ def download(wheel_dir: Path) -> None:
                 raise SystemExit(f"pip did not produce {name} for {req} ({plat}); update WHEELS and the manifest")
 
 
+def build_core_wheel(wheel_dir: Path) -> Path:
+    """``pip wheel --no-deps`` of a clean copy of the core into ``wheel_dir`` (replacing any
+    previous build of the same name); returns the wheel's path."""
+    wheel_dir.mkdir(parents=True, exist_ok=True)
+    name = core_wheel_name()
+    target = wheel_dir / name
+    if target.exists():
+        target.unlink()
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", ".*")
+    with tempfile.TemporaryDirectory(prefix="skymodel-core-") as tmp:
+        src = Path(tmp) / "src"
+        src.mkdir()
+        for item in CORE_SOURCES:
+            path = ROOT / item
+            if path.is_dir():
+                shutil.copytree(path, src / item, ignore=ignore)
+            else:
+                shutil.copy2(path, src / item)
+        out = Path(tmp) / "out"
+        cmd = [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(out), str(src)]
+        print(" ".join(cmd), flush=True)
+        subprocess.run(cmd, check=True, cwd=tmp)
+        built = out / name
+        if not built.is_file():
+            raise SystemExit(f"pip did not produce {name} (got {sorted(p.name for p in out.glob('*'))})")
+        shutil.copy2(built, target)
+    print(f"built {target}")
+    return target
+
+
 def stage(stage_dir: Path, wheel_dir: Path) -> None:
     if stage_dir.exists():
         shutil.rmtree(stage_dir)
@@ -97,9 +145,6 @@ def stage(stage_dir: Path, wheel_dir: Path) -> None:
     for f in sorted((ROOT / "blender_addon").glob("*.py")):
         if f.name not in ADDON_EXCLUDE:
             shutil.copy2(f, stage_dir / f.name)
-    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", ".*")
-    shutil.copytree(ROOT / "skymodel", stage_dir / "skymodel", ignore=ignore)
-    shutil.copytree(ROOT / "presets", stage_dir / "presets", ignore=ignore)
     shutil.copy2(ROOT / "blender_manifest.toml", stage_dir / "blender_manifest.toml")
     (stage_dir / "wheels").mkdir()
     for path in manifest_wheel_paths():
@@ -131,6 +176,7 @@ def main(argv=None) -> int:
                          f"  manifest: {listed}\n  script:   {manifest_wheel_paths()}")
     if not args.no_download:
         download(args.wheel_dir)
+    build_core_wheel(args.wheel_dir)
     stage(args.stage_dir, args.wheel_dir)
     blender_ext = args.blender_ext or find_blender_ext()
     args.output_dir.mkdir(parents=True, exist_ok=True)

@@ -64,6 +64,8 @@ def test_wheels_match_the_build_script(manifest):
     for req, plats in build.WHEELS.items():
         if "any" not in plats:
             assert set(plats) == set(manifest["platforms"]), req
+    # the core travels as its own pure wheel, of the package's version
+    assert f"./wheels/skymodel-{manifest['version']}-py3-none-any.whl" in manifest["wheels"]
 
 
 def test_build_script_rejects_a_mismatch(manifest, tmp_path, monkeypatch):
