@@ -36,12 +36,12 @@ Exposure (the "incident-light meter" rule)
 from __future__ import annotations
 
 import dataclasses
-import datetime as _dt
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from skymodel.errors import SkymodelInputError, check_range
+from skymodel import scene
+from skymodel.errors import SkymodelInputError
 from skymodel.models import SkyScene, blender_sky, get_model
 from skymodel.optics.atmosphere import Atmosphere
 from skymodel.render import environment
@@ -49,10 +49,10 @@ from skymodel.render.environment import (  # noqa: F401  (the colour scale and e
     CACHE_FORMAT, IMAGE_WIDTH, LUMA_709, WAVELENGTH_STEP_NM, default_cache_dir, exposure_from_illuminance,
     fit_into_gamut, horizontal_illuminance, spectrum_rgb, sun_lamp)
 from skymodel.render.sky import add_sun_disc
-from skymodel.sun import limb_darkening, solar_position
+from skymodel.sun import limb_darkening
 
-#: Lowest sun elevation the add-on accepts (the core CLI's rule: below it the sky is night).
-MIN_SUN_ELEVATION_DEG = -12.0
+#: Lowest sun elevation the add-on accepts (the registry's: below it the sky is night).
+MIN_SUN_ELEVATION_DEG = scene.parameter("sun_elevation").minimum
 #: Sky models the Environment can come from (names of ``skymodel.models``, and "blender":
 #: Blender's own Sky Texture node): only models with an absolute radiance (the CIE skies
 #: are relative and not offered).
@@ -73,27 +73,28 @@ class SkyParams:
     ``location`` None means custom ``latitude_deg``/``longitude_deg`` (then ``aerosol``
     must be given). ``time_utc`` = (year, month, day, hour, minute) places the sun from
     the date (and the month comes from it); otherwise ``sun_elevation_deg`` /
-    ``sun_azimuth_deg`` are used. ``aerosol`` None = the location's type.
+    ``sun_azimuth_deg`` are used. ``aerosol`` None = the location's type. Defaults and
+    ranges are the registry's (:mod:`skymodel.scene`).
     """
 
-    location: str | None = "rural"
+    location: str | None = scene.default("location")
     latitude_deg: float | None = None
     longitude_deg: float | None = None
-    month: int = 6
+    month: int = scene.default("month")
     time_utc: tuple | None = None
-    sun_elevation_deg: float = 25.0
-    sun_azimuth_deg: float = 180.0
+    sun_elevation_deg: float = scene.default("sun_elevation")
+    sun_azimuth_deg: float = scene.default("sun_azimuth")
     aerosol: str | None = None
     aod550: float | None = None
     turbidity: float | None = None
-    stratospheric: str = "background"
+    stratospheric: str = scene.default("stratospheric")
     ozone_du: float | None = None
     albedo: float | None = None
-    observer_altitude_m: float = 0.0
-    quality: str = "preview"
-    image_width: int = 0
+    observer_altitude_m: float = scene.default("observer_altitude")
+    quality: str = scene.default("quality")
+    image_width: int = scene.default("environment_width")
     mode: str = "ENVIRONMENT"
-    n_layers: int = 8
+    n_layers: int = scene.default("volume_layers")
     sky_model: str = "ours"  # one of SKY_MODELS (Environment mode)
     # set by Auto mode's effect plan (skymodel.planner); None / True = the quality's own
     wavelength_step_nm: float | None = None
@@ -122,59 +123,39 @@ class ResolvedSky:
 
 
 def _time_iso(t) -> str:
-    try:
-        year, month, day, hour, minute = (int(v) for v in t)
-    except (TypeError, ValueError):
-        raise _err("time_utc", t, "(year, month, day, hour, minute)") from None
-    if not 1900 <= year <= 2100:
-        raise _err("year", year, "a year in 1900..2100")
-    if not 1 <= month <= 12:
-        raise _err("month", month, "an integer 1..12")
-    import calendar
+    """``(year, month, day, hour, minute)`` UTC as ISO 8601 text (:func:`skymodel.scene.time_iso`)."""
+    return scene.time_iso(t)
 
-    last = calendar.monthrange(year, month)[1]
-    if not 1 <= day <= last:
-        raise _err("day", day, f"a day 1..{last} for {year}-{month:02d}")
-    if not 0 <= hour <= 23:
-        raise _err("hour", hour, "an hour 0..23 (UTC)")
-    if not 0 <= minute <= 59:
-        raise _err("minute", minute, "a minute 0..59")
-    return _dt.datetime(year, month, day, hour, minute).strftime("%Y-%m-%dT%H:%M:00Z")
+
+def _check_field(field_name: str, parameter: str, value):
+    """Check ``value`` against the registry's ``parameter`` (:mod:`skymodel.scene`), naming
+    the SkyParams field in the error."""
+    if isinstance(value, bool):
+        raise _err(field_name, value, scene.parameter(parameter).allowed_text())
+    return dataclasses.replace(scene.parameter(parameter), name=field_name).check(value)
 
 
 def resolve(params: SkyParams) -> ResolvedSky:
     """Validate everything through the core (raises ``SkymodelInputError`` naming the
     parameter) and place the sun."""
     p = params
-    month = p.month
-    iso = None
-    if p.time_utc is not None:
-        iso = _time_iso(p.time_utc)
-        month = int(p.time_utc[1])
-    if str(p.quality).lower() not in IMAGE_WIDTH:
-        raise _err("quality", p.quality, "one of: " + ", ".join(IMAGE_WIDTH))
+    quality = scene.check("quality", p.quality)
+    # the date (if any) is checked first: a bad day is named before the atmosphere is built
+    month = p.month if p.time_utc is None else scene.month_of(p.time_utc)
     atm = Atmosphere(location=p.location, month=month, latitude=p.latitude_deg, longitude=p.longitude_deg,
                      aerosol=p.aerosol, aod550=p.aod550, turbidity=p.turbidity, stratospheric=p.stratospheric,
                      ozone_du=p.ozone_du, albedo=p.albedo)
-    if iso is not None:
-        pos = solar_position(atm.latitude, atm.longitude, iso)
-        elev, az = float(np.asarray(pos.elevation_deg)), float(np.asarray(pos.azimuth_deg))
-        dist = float(np.asarray(pos.earth_sun_distance_au))
-        if elev < MIN_SUN_ELEVATION_DEG:
-            raise _err("time_utc", iso, f"a time when the sun is above {MIN_SUN_ELEVATION_DEG:g} degrees "
-                                        f"(it is at {elev:.1f} degrees: night)")
+    if p.time_utc is not None:  # the date places the sun; the angle fields are not used
+        sun = scene.place_sun(atm.latitude, atm.longitude, p.time_utc)
     else:
-        elev, az, dist = p.sun_elevation_deg, p.sun_azimuth_deg, 1.0
-    elev = check_range("sun_elevation", elev, MIN_SUN_ELEVATION_DEG, 90.0,
-                       "degrees (below -12 the sky is night)")
-    az = check_range("sun_azimuth", az, -360.0, 360.0, "degrees") % 360.0
-    check_range("observer_altitude", p.observer_altitude_m, 0.0, 100_000.0, "metres")
+        sun = scene.place_sun(elevation_deg=p.sun_elevation_deg, azimuth_deg=p.sun_azimuth_deg)
+    elev, az, dist, iso = sun.elevation_deg, sun.azimuth_deg, sun.earth_sun_distance_au, sun.time_utc
+    scene.check("observer_altitude", p.observer_altitude_m)
+    p = dataclasses.replace(p, quality=quality) if quality != p.quality else p
     if p.mode not in ("ENVIRONMENT", "VOLUMETRIC"):
         raise _err("mode", p.mode, "ENVIRONMENT or VOLUMETRIC")
-    if isinstance(p.image_width, bool) or int(p.image_width) < 0 or int(p.image_width) > 8192:
-        raise _err("image_width", p.image_width, "0 (by quality) or 16..8192 pixels")
-    if not 1 <= int(p.n_layers) <= 24:
-        raise _err("n_layers", p.n_layers, "an integer 1..24")
+    _check_field("image_width", "environment_width", p.image_width)
+    _check_field("n_layers", "volume_layers", p.n_layers)
     if p.sky_model not in SKY_MODELS:
         raise _err("sky_model", p.sky_model, "one of: " + ", ".join(SKY_MODELS))
     if p.sky_model != "ours" and p.mode != "ENVIRONMENT":

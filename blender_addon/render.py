@@ -30,8 +30,9 @@ import time
 from types import SimpleNamespace
 
 import bpy
-
-from .core import input_error_class
+from skymodel import scene
+from skymodel.errors import SkymodelInputError
+from skymodel.render.quality import QUALITIES
 
 
 def _size(text):
@@ -50,7 +51,8 @@ def parse_args(argv=None):
     g.add_argument("--location", default=None, help="location preset (default rural)")
     g.add_argument("--lat", type=float, default=None, help="latitude, degrees north (custom location)")
     g.add_argument("--lon", type=float, default=None, help="longitude, degrees east (custom location)")
-    g.add_argument("--month", type=int, default=6, help="1..12 (ignored with --time)")
+    g.add_argument("--month", type=int, default=scene.default("month"),
+                   help=scene.parameter("month").help_text() + "; ignored with --time")
     g.add_argument("--aerosol", default=None, help="aerosol type or 'none' (default: the location's)")
     g.add_argument("--aod550", type=float, default=None)
     g.add_argument("--turbidity", type=float, default=None)
@@ -58,12 +60,13 @@ def parse_args(argv=None):
     g.add_argument("--ozone-du", type=float, default=None)
     g.add_argument("--albedo", type=float, default=None)
     g = ap.add_argument_group("sun")
-    g.add_argument("--sun-elevation", type=float, default=None, help="degrees (-12..90), default 25")
+    g.add_argument("--sun-elevation", type=float, default=None, help=scene.parameter("sun_elevation").help_text())
     g.add_argument("--sun-azimuth", type=float, default=None, help="degrees clockwise from north, default 180")
     g.add_argument("--time", default=None, help="UTC date-time YYYY-MM-DDTHH:MM (sun placed by the core)")
     g = ap.add_argument_group("render")
     g.add_argument("--mode", default="environment", choices=["auto", "environment", "volumetric"])
-    g.add_argument("--quality", default="preview", choices=["preview", "final", "reference"])
+    g.add_argument("--quality", default=scene.default("quality"), choices=list(QUALITIES),
+                   help=scene.parameter("quality").help_text().replace("%", "%%"))
     g.add_argument("--image-width", type=int, default=0, help="environment image width (0: by quality)")
     g.add_argument("--layers", type=int, default=8, help="volume layers (volumetric)")
     g.add_argument("--volume-bounces", type=int, default=8)
@@ -109,17 +112,15 @@ def _apply_options(s, o):
         try:
             t = dt.datetime.fromisoformat(o.time.rstrip("Zz"))
         except ValueError:
-            raise input_error_class()("time", o.time, "an ISO date-time such as 2026-06-21T19:30") from None
+            raise SkymodelInputError("time", o.time, "an ISO date-time such as 2026-06-21T19:30") from None
         s.sun_source = "TIME"
         s.year, s.month, s.day, s.hour, s.minute = t.year, t.month, t.day, t.hour, t.minute
     else:
         s.sun_source = "ANGLES"
         s.month = o.month
-        el = 25.0 if o.sun_elevation is None else o.sun_elevation
-        az = 180.0 if o.sun_azimuth is None else o.sun_azimuth
-        err = input_error_class()
-        if not -12.0 <= el <= 90.0:  # the property would clamp silently
-            raise err("sun_elevation", el, "a number in [-12, 90] degrees")
+        # checked here: the property would clamp silently
+        sun = scene.place_sun(elevation_deg=o.sun_elevation, azimuth_deg=o.sun_azimuth)
+        el, az = sun.elevation_deg, sun.azimuth_deg
         s.sun_elevation = math.radians(el)
         s.sun_azimuth = math.radians(az % 360.0)
     s.mode = o.mode.upper()
@@ -196,19 +197,18 @@ def main(argv=None) -> int:
         o = parse_args(argv)
     except SystemExit as ex:  # argparse: bad usage
         return int(ex.code or 0)
-    err = input_error_class()
     t0 = time.perf_counter()
     try:
         out = os.path.abspath(o.out)
         if not os.path.isdir(os.path.dirname(out)):
-            raise err("out", o.out, "a path in an existing folder")
+            raise SkymodelInputError("out", o.out, "a path in an existing folder")
         scene = build_scene(o)
         if o.exr:
             _render(scene, os.path.abspath(o.exr), "OPEN_EXR")
             print(f"[skymodel] wrote {o.exr}")
         scene.render.image_settings.color_depth = "8"
         _render(scene, out, "PNG")
-    except err as ex:
+    except SkymodelInputError as ex:
         print(f"skymodel: error: {ex}", file=sys.stderr)
         return 2
     print(f"[skymodel] wrote {out} in {time.perf_counter() - t0:.1f} s")
