@@ -296,7 +296,7 @@ def _env_build_row(q):
 
     from blender_addon import physics
     from blender_addon import render as headless
-    from blender_addon.core import input_error_class
+    from skymodel.errors import SkymodelInputError
 
     headless._ensure_registered()
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -310,7 +310,7 @@ def _env_build_row(q):
     try:
         headless.build_scene(o, progress=None)
         row["build_s"] = round(time.perf_counter() - t0, 1)
-    except input_error_class() as ex:  # e.g. the core's memory guard
+    except SkymodelInputError as ex:  # e.g. the core's memory guard
         row["refused"] = str(ex)
     row["peak_MiB"] = round(peak_memory_mb(), 1)
     row["load_after"] = [round(v, 2) for v in os.getloadavg()]

@@ -8,9 +8,9 @@ import traceback
 from pathlib import Path
 
 import bpy
+from skymodel.errors import SkymodelInputError
 
 from . import builder, physics
-from .core import input_error_class
 
 class Progress:
     """Progress of a build: the cursor progress in the UI (``wm.progress_*``, which does
@@ -70,18 +70,18 @@ def build(context, settings=None, progress=None):
                 progress(f"plan: {line}")
     if progress:
         progress(f"mode {params.mode.lower()}, quality {params.quality}")
-    plan = physics.resolve(params)
+    sky = physics.resolve(params)
     if progress:
-        progress(f"sun elevation {plan.sun_elevation_deg:.2f}°, azimuth {plan.sun_azimuth_deg:.2f}°"
-                 + (f" ({plan.time_iso})" if plan.time_iso else ""))
+        progress(f"sun elevation {sky.sun_elevation_deg:.2f}°, azimuth {sky.sun_azimuth_deg:.2f}°"
+                 + (f" ({sky.time_iso})" if sky.time_iso else ""))
     if params.mode == "ENVIRONMENT":
-        _, result = physics.render_environment(plan, cache_dir(), progress)
+        _, result = physics.render_environment(sky, cache_dir(), progress)
         result.info["total_s"] = time.perf_counter() - t0
         builder.apply_environment(scene, world, settings, result, progress)
     else:
         from . import volumetric
 
-        result = volumetric.compute(plan, cache_dir(), progress)
+        result = volumetric.compute(sky, cache_dir(), progress)
         result.info["total_s"] = time.perf_counter() - t0
         volumetric.apply(scene, world, settings, result, progress)
     result.info["total_s"] = time.perf_counter() - t0
@@ -101,10 +101,9 @@ class SKYMODEL_OT_build_sky(bpy.types.Operator):
 
     def execute(self, context):
         progress = Progress(context)
-        InputError = input_error_class()
         try:
             result = build(context, progress=progress)
-        except InputError as ex:
+        except SkymodelInputError as ex:
             self.report({"ERROR"}, f"Skymodel: {ex}")
             return {"CANCELLED"}
         except Exception as ex:  # the scene was rolled back; say what happened

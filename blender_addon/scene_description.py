@@ -23,8 +23,10 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from skymodel import planner
+from skymodel.render.cameras import DEFAULT_MAX_MEMORY_BYTES, estimate_memory_bytes
+
 from . import physics
-from .core import core
 
 #: Effect name -> the settings property holding its Auto / On / Off override.
 OVERRIDE_PROPS = {
@@ -62,7 +64,6 @@ def camera_view(obj, scale: float = 1.0):
     """The core's ``CameraView`` of a Blender camera object."""
     from mathutils import Vector
 
-    planner = core("planner")
     mw = obj.matrix_world
     altitude = max(0.0, float(mw.translation.z) * scale)
     data = obj.data
@@ -95,7 +96,6 @@ def farthest_object_m(scene, cameras, scale: float = 1.0) -> float:
 
 def describe(scene, settings) -> object:
     """The core's ``SceneDescription`` of ``scene`` with the panel's sun and tolerance."""
-    planner = core("planner")
     scale = scene.unit_settings.scale_length or 1.0
     cams = cameras_of(scene, settings.plan_cameras)
     views = [camera_view(c, scale) for c in cams] or [planner.CameraView()]
@@ -124,7 +124,7 @@ def overrides(settings) -> dict:
 
 def make_plan(scene, settings):
     """The plan for ``scene`` (raises the core's ``SkymodelInputError`` on bad input)."""
-    return core("planner").plan(describe(scene, settings), overrides=overrides(settings))
+    return planner.plan(describe(scene, settings), overrides=overrides(settings))
 
 
 def params_from_plan(params, plan):
@@ -153,10 +153,9 @@ AUTO_MAX_WIDTH = {"preview": 1024, "final": 2048, "reference": 4096}
 def environment_width(plan, quality: str) -> int:
     """The plan's environment width, at most :data:`AUTO_MAX_WIDTH` of the quality and
     within the core's memory guard for the plan's wavelength count (halved until it fits)."""
-    cams = core("render.cameras")
     n_wl = int(round(400.0 / plan.wavelength_step_nm)) + 1
     w = min(int(plan.environment_width), AUTO_MAX_WIDTH.get(str(quality), 1024))
-    while w > 64 and cams.estimate_memory_bytes(w, w // 2, n_wl) > cams.DEFAULT_MAX_MEMORY_BYTES:
+    while w > 64 and estimate_memory_bytes(w, w // 2, n_wl) > DEFAULT_MAX_MEMORY_BYTES:
         w //= 2
     return w
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import bpy
+from skymodel.errors import SkymodelInputError
 
 
 def draw_settings(layout, context):
@@ -88,7 +89,6 @@ def draw_settings(layout, context):
 def draw_plan(layout, context, s):
     """Auto mode: the effect planner's decisions and reasons, and the overrides."""
     from . import scene_description
-    from .core import input_error_class
 
     col = layout.column(align=True)
     col.prop(s, "plan_cameras")
@@ -97,7 +97,7 @@ def draw_plan(layout, context, s):
     box = layout.box()
     try:
         plan = scene_description.make_plan(context.scene, s)
-    except input_error_class() as ex:
+    except SkymodelInputError as ex:
         box.label(text=f"No plan: {ex}", icon="ERROR")
         return
     except Exception as ex:  # a missing effect table, a broken scene: say so, keep the panel usable

@@ -68,9 +68,16 @@ import time
 
 import numpy as np
 
-from .core import core
-from .physics import (LUMA_709, SkyResult, exposure_from_illuminance, horizontal_illuminance, spectrum_rgb,
-                      sun_lamp)
+from skymodel.colorimetry import cmf_weights, xyz_to_rgb_matrix
+from skymodel.errors import SkymodelInputError
+from skymodel.optics.phase_fit import fit_phase, hg
+from skymodel.optics.profile import LayeredProfile
+from skymodel.render.environment import environment_camera
+from skymodel.render.sky import render_sky
+from skymodel.wavelengths import default_wavelengths
+
+from .physics import (LUMA_709, SkyResult, exposure_from_illuminance, fit_into_gamut, horizontal_illuminance,
+                      spectrum_rgb, sun_lamp)
 
 #: Spectral grid of the projection (nm).
 WAVELENGTH_STEP_NM = 10.0
@@ -170,8 +177,7 @@ def sphere_arrays(radius_m: float, centre_z: float, thetas: np.ndarray, segments
 
 def rgb_weights(wavelengths_nm, solar_irradiance) -> np.ndarray:
     """(n_wl, 3) projection weights, each column summing to 1 (see module doc)."""
-    colorimetry = core("colorimetry")
-    W = colorimetry.cmf_weights(wavelengths_nm) @ colorimetry.xyz_to_rgb_matrix("rec709").T  # (n_wl, 3)
+    W = cmf_weights(wavelengths_nm) @ xyz_to_rgb_matrix("rec709").T  # (n_wl, 3)
     w = np.asarray(solar_irradiance, float)[:, None] * W
     return w / w.sum(axis=0, keepdims=True)
 
@@ -211,7 +217,6 @@ def closure_split(species, channel_weights) -> list:
 
 def regime_phase_fits(profile, weights, column_scattering_by_regime):
     """(n_regime) list of (w, g1, g2) double-HG lobes, or None for an empty regime."""
-    fit_phase = core("optics.phase_fit").fit_phase
     fits = []
     for r in range(profile.aerosol_phase.shape[0]):
         col = column_scattering_by_regime[r]  # (n_wl,)
@@ -244,11 +249,11 @@ def layer_volumes(edges_m) -> list:
     return out
 
 
-def volume_layers(plan, n_layers: int):
+def volume_layers(sky, n_layers: int):
     """One volume per layer (plain dicts, radii in metres above the ground; see the module doc)
     and the spectral pieces the projection used."""
-    wl = core("wavelengths").default_wavelengths(WAVELENGTH_STEP_NM)
-    prof = plan.profile(wl)
+    wl = default_wavelengths(WAVELENGTH_STEP_NM)
+    prof = sky.profile(wl)
     lay = prof.layered(n_layers=int(n_layers))
     weights = rgb_weights(wl, prof.solar_irradiance)
     edges = np.asarray(lay.edges_m, float)
@@ -277,7 +282,7 @@ def volume_layers(plan, n_layers: int):
 
     most = max(closures(v) for v in volumes)
     if most > MAX_PHASE_CLOSURES:  # cannot happen with two regimes; kept as the contract
-        raise core("errors").SkymodelInputError(
+        raise SkymodelInputError(
             "n_layers", n_layers, f"{most} phase closures in one volume; Cycles evaluates at most {MAX_PHASE_CLOSURES}")
     albedo = spectrum_rgb(prof.ground_albedo * prof.solar_irradiance, wl) / np.maximum(
         spectrum_rgb(prof.solar_irradiance, wl), 1e-30)
@@ -309,9 +314,6 @@ def rgb_model_profile(vol):
     volumes as layers of their own, Rayleigh without depolarisation (Cycles' RAYLEIGH phase), the
     fitted aerosol lobes and the RGB extraterrestrial sun. The core's marcher renders it for a
     like-for-like comparison with Cycles (``tests/test_addon_crossval.py``, ``benchmarks/bench_blender.py``)."""
-    hg = core("optics.phase_fit").hg
-    LayeredProfile = core("optics.profile").LayeredProfile
-
     lay, prof = vol["layered"], vol["profile"]
     n_regime = lay.aerosol_scattering_by_regime.shape[0]
     names = ["rayleigh"] + [f"aerosol{r}" for r in range(n_regime)]
@@ -351,31 +353,27 @@ def rgb_model_profile(vol):
         aerosol_absorption=np.zeros_like(c["absorption"]))
 
 
-def compute(plan, cache_dir=None, progress=None) -> SkyResult:
+def compute(sky, cache_dir=None, progress=None) -> SkyResult:
     """Everything the volumetric scene needs (no bpy)."""
     t0 = time.perf_counter()
-    p = plan.params
+    p = sky.params
     if progress:
         progress(f"layered profile: {p.n_layers} layers, RGB projection")
-    vol = volume_layers(plan, p.n_layers)
+    vol = volume_layers(sky, p.n_layers)
     prof = vol["profile"]
     wl = prof.wavelengths_nm
     strength, colour = sun_lamp(prof.solar_irradiance, wl)  # extraterrestrial: Cycles attenuates it
     # exposure: the same rule as Environment mode, from a small core render of the same sky
     if progress:
         progress("small spectral render for the exposure")
-    cam = core("render.cameras").make_camera("equirectangular", EXPOSURE_IMAGE_WIDTH, center_azimuth_deg=90.0,
-                                             n_wavelengths=wl.size)
-    img = core("render.sky").render_sky(prof, cam, plan.sun_elevation_deg, plan.sun_azimuth_deg, 0.0, "preview",
-                                        include_sun=False)
-    from .physics import fit_into_gamut
-
+    cam = environment_camera(EXPOSURE_IMAGE_WIDTH, n_wavelengths=wl.size)
+    img = render_sky(prof, cam, sky.sun_elevation_deg, sky.sun_azimuth_deg, 0.0, "preview", include_sun=False)
     rgb = fit_into_gamut(spectrum_rgb(img.radiance, wl))
     s_obs, _ = sun_lamp(img.sun_irradiance, wl)
-    e_h = horizontal_illuminance(rgb, cam, s_obs, plan.sun_elevation_deg)
-    res = SkyResult(mode="VOLUMETRIC", sun_elevation_deg=plan.sun_elevation_deg,
-                    sun_azimuth_deg=plan.sun_azimuth_deg, sun_strength=strength, sun_colour=colour,
-                    sun_angle_deg=plan.sun_angular_diameter_deg(), exposure=exposure_from_illuminance(e_h))
+    e_h = horizontal_illuminance(rgb, cam, s_obs, sky.sun_elevation_deg)
+    res = SkyResult(mode="VOLUMETRIC", sun_elevation_deg=sky.sun_elevation_deg,
+                    sun_azimuth_deg=sky.sun_azimuth_deg, sun_strength=strength, sun_colour=colour,
+                    sun_angle_deg=sky.sun_angular_diameter_deg(), exposure=exposure_from_illuminance(e_h))
     res.layers = vol
     res.ground_albedo_rgb = tuple(vol["ground_albedo_rgb"])
     h = rgb.shape[0]
