@@ -284,7 +284,8 @@ def _sky_texture_nodes(tx: Transaction, world, tex: dict):
     _world_surface(tx, world, bg.outputs["Background"])
 
 
-def _black_world_nodes(tx: Transaction, world):
+def black_world_nodes(tx: Transaction, world):
+    """A black, zero-strength Background as the world surface (volumetric mode: the sky is in the volumes)."""
     tree = world.node_tree
     bg = tx.new_node(tree, "ShaderNodeBackground", "Skymodel Background", (-350, 300))
     bg.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
@@ -317,21 +318,21 @@ def load_image(tx: Transaction, path: str, pack: bool):
     return img
 
 
-def apply_environment(scene, world, settings, result, progress=None):
-    """Environment mode: image world + sun lamp. Returns the build id."""
+def build(scene, world, settings, result, add_content) -> str:
+    """Run one build as a :class:`Transaction`, all or nothing; returns the build id.
+
+    Creates the ``Skymodel`` collection (if needed) and the sun lamp of ``result``, calls
+    ``add_content(tx, collection)`` for what the mode adds (world nodes, objects, render
+    settings: everything through ``tx``), then sets the exposure (when
+    ``settings.set_exposure``) and the panel's info. On any exception everything is undone
+    and the exception re-raised; on success the previous build is removed and the new
+    datablocks get their plain names."""
     tx = Transaction()
     try:
-        if progress:
-            progress("loading the sky image")
-        sky_texture = result.info.get("sky_texture")  # sky model "blender": its own node, no image
-        image = None if sky_texture else load_image(tx, result.image_path, settings.pack_image)
         coll = _ensure_collection(tx, scene)
         sun = _new_sun(tx, result)
         tx.link_object(coll, sun)
-        if sky_texture:
-            _sky_texture_nodes(tx, world, sky_texture)
-        else:
-            _environment_nodes(tx, world, image)
+        add_content(tx, coll)
         if settings.set_exposure:
             _view_settings(tx, scene, result.exposure)
         _write_info(tx, settings, result)
@@ -342,6 +343,21 @@ def apply_environment(scene, world, settings, result, progress=None):
     remove_previous(scene, world, tx.build_id)
     commit_names(tx)
     return tx.build_id
+
+
+def apply_environment(scene, world, settings, result, progress=None):
+    """Environment mode: image world + sun lamp. Returns the build id."""
+    if progress:
+        progress("loading the sky image")
+    sky_texture = result.info.get("sky_texture")  # sky model "blender": its own node, no image
+
+    def world_nodes(tx, coll):
+        if sky_texture:
+            _sky_texture_nodes(tx, world, sky_texture)
+        else:
+            _environment_nodes(tx, world, load_image(tx, result.image_path, settings.pack_image))
+
+    return build(scene, world, settings, result, world_nodes)
 
 
 def commit_names(tx: Transaction):

@@ -480,20 +480,18 @@ def _object(tx, coll, name, mesh, material):
 
 
 def apply(scene, world, settings, result, progress=None):
-    """Volumetric mode scene: black world, sun lamp, one volume per layer, ground, Cycles settings."""
+    """Volumetric mode scene: black world, sun lamp, one volume per layer, ground, Cycles settings
+    (one :func:`builder.build`: all or nothing). Returns the build id."""
     from . import builder
 
     vol = result.layers
     R = float(vol["profile"].planet_radius_m)
     thetas = ring_angles(R)
-    tx = builder.Transaction()
-    try:
-        if progress:
-            progress(f"meshes: {len(vol['volumes'])} layer volumes, ground "
-                     f"({(thetas.size - 1) * SEGMENTS} faces a sphere)")
-        coll = builder._ensure_collection(tx, scene)
-        sun = builder._new_sun(tx, result)
-        tx.link_object(coll, sun)
+    if progress:
+        progress(f"meshes: {len(vol['volumes'])} layer volumes, ground "
+                 f"({(thetas.size - 1) * SEGMENTS} faces a sphere)")
+
+    def volumes_and_settings(tx, coll):
         for v in vol["volumes"]:
             name = f"Skymodel Atmosphere {v['layer']:02d}"
             outer = sphere_arrays(R + v["top_m"], -R, thetas, apex_off_axis=True)
@@ -510,7 +508,7 @@ def apply(scene, world, settings, result, progress=None):
                 obj["skymodel_bottom_m"] = v["bottom_m"]
         me = _mesh_from_arrays(tx, "Skymodel Ground", *sphere_arrays(R, -R - GROUND_DROP_M, thetas))
         _object(tx, coll, "Skymodel Ground", me, _ground_material(tx, result.ground_albedo_rgb))
-        builder._black_world_nodes(tx, world)
+        builder.black_world_nodes(tx, world)
         tx.set(scene.render, "engine", "CYCLES")
         cyc = scene.cycles
         nb = int(settings.volume_bounces)
@@ -520,13 +518,5 @@ def apply(scene, world, settings, result, progress=None):
         tx.set(cyc, "transparent_max_bounces", max(int(cyc.transparent_max_bounces), crossings))
         if scene.camera is not None and scene.camera.type == "CAMERA":
             tx.set(scene.camera.data, "clip_end", max(float(scene.camera.data.clip_end), 2.0e7))
-        if settings.set_exposure:
-            builder._view_settings(tx, scene, result.exposure)
-        builder._write_info(tx, settings, result)
-        builder._fail_hook("after_swap")
-    except BaseException:
-        tx.rollback()
-        raise
-    builder.remove_previous(scene, world, tx.build_id)
-    builder.commit_names(tx)
-    return tx.build_id
+
+    return builder.build(scene, world, settings, result, volumes_and_settings)
