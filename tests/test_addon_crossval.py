@@ -147,11 +147,11 @@ def marcher_image(case):
     from blender_addon import physics, volumetric
     from skymodel.render.marcher import MarchSettings, SkyMarcher
 
-    plan = physics.resolve(physics.SkyParams(location=case["location"], month=case["month"],
-                                             sun_elevation_deg=case["sun_elevation"],
-                                             sun_azimuth_deg=case["sun_azimuth"], aerosol=case["aerosol"],
-                                             albedo=0.0, mode="VOLUMETRIC", n_layers=case["layers"]))
-    prof = volumetric.rgb_model_profile(volumetric.volume_layers(plan, case["layers"]))
+    sky = physics.resolve(physics.SkyParams(location=case["location"], month=case["month"],
+                                            sun_elevation_deg=case["sun_elevation"],
+                                            sun_azimuth_deg=case["sun_azimuth"], aerosol=case["aerosol"],
+                                            albedo=0.0, mode="VOLUMETRIC", n_layers=case["layers"]))
+    prof = volumetric.rgb_model_profile(volumetric.volume_layers(sky, case["layers"]))
     marcher = SkyMarcher(prof, case["sun_elevation"], case["sun_azimuth"], CAMERA_HEIGHT_M,
                          MarchSettings(orders=1, exact=True, view_steps=VIEW_STEPS))
     need = np.any(np.stack(list(regions(HEIGHT, WIDTH).values())), axis=0)

@@ -11,8 +11,8 @@ from skymodel.errors import SkymodelInputError
 
 
 def test_resolve_validates_through_the_core():
-    plan = physics.resolve(physics.SkyParams(location="desert", month=1, sun_elevation_deg=5, sun_azimuth_deg=-90))
-    assert plan.atmosphere.aerosol == "desert" and plan.sun_azimuth_deg == pytest.approx(270.0)
+    sky = physics.resolve(physics.SkyParams(location="desert", month=1, sun_elevation_deg=5, sun_azimuth_deg=-90))
+    assert sky.atmosphere.aerosol == "desert" and sky.sun_azimuth_deg == pytest.approx(270.0)
     with pytest.raises(SkymodelInputError) as e:
         physics.resolve(physics.SkyParams(time_utc=(2026, 2, 30, 12, 0)))
     assert e.value.parameter == "day"
@@ -25,10 +25,10 @@ def test_resolve_validates_through_the_core():
 
 
 def test_time_places_the_sun_and_sets_the_month():
-    plan = physics.resolve(physics.SkyParams(location="zaragoza", month=1, time_utc=(2026, 6, 21, 12, 0)))
-    assert plan.atmosphere.month == 6
-    assert 60 < plan.sun_elevation_deg < 75 and 150 < plan.sun_azimuth_deg < 200
-    assert plan.sun_angular_diameter_deg() == pytest.approx(0.524, abs=0.003)  # aphelion
+    sky = physics.resolve(physics.SkyParams(location="zaragoza", month=1, time_utc=(2026, 6, 21, 12, 0)))
+    assert sky.atmosphere.month == 6
+    assert 60 < sky.sun_elevation_deg < 75 and 150 < sky.sun_azimuth_deg < 200
+    assert sky.sun_angular_diameter_deg() == pytest.approx(0.524, abs=0.003)  # aphelion
 
 
 def test_cache_key_changes_with_every_input():
@@ -118,9 +118,9 @@ def test_tessellation_sag_is_sub_metre_near_the_camera():
 
 
 def test_volume_layers_hold_each_layer_in_one_volume():
-    plan = physics.resolve(physics.SkyParams(location="urban", month=7, sun_elevation_deg=30, mode="VOLUMETRIC",
-                                             n_layers=8))
-    vol = volumetric.volume_layers(plan, 8)
+    sky = physics.resolve(physics.SkyParams(location="urban", month=7, sun_elevation_deg=30, mode="VOLUMETRIC",
+                                            n_layers=8))
+    vol = volumetric.volume_layers(sky, 8)
     assert len(vol["volumes"]) == 8 and vol["closures_per_volume"] <= volumetric.MAX_PHASE_CLOSURES
     assert vol["volumes"][-1]["top_m"] == pytest.approx(100_000.0 - volumetric.SHELL_INSET_M)
     assert vol["phases"]["aerosol0"]["g1"] > 0.5 and vol["phases"]["aerosol0"]["lobes"] == 2
@@ -137,16 +137,16 @@ def test_volume_layers_hold_each_layer_in_one_volume():
     want = (sum(vol["closure_scattering"].values()) + np.maximum(
         volumetric.project(lay.ozone_absorption + lay.aerosol_absorption, w), 0.0))[:, volumetric.TO_RGB]
     assert np.allclose(prof.vertical_optical_depth(ext), (want * thick[:, None]).sum(axis=0), rtol=1e-9)
-    many = volumetric.volume_layers(plan, 24)  # any number of layers: still one volume at a point
+    many = volumetric.volume_layers(sky, 24)  # any number of layers: still one volume at a point
     assert many["closures_per_volume"] <= volumetric.MAX_PHASE_CLOSURES
     assert many["phases"]["aerosol0"]["lobes"] == 2
 
 
 def test_too_many_closures_are_refused(monkeypatch):
-    plan = physics.resolve(physics.SkyParams(location="urban", month=7, sun_elevation_deg=30, n_layers=8))
+    sky = physics.resolve(physics.SkyParams(location="urban", month=7, sun_elevation_deg=30, n_layers=8))
     monkeypatch.setattr(volumetric, "MAX_PHASE_CLOSURES", 2)
     with pytest.raises(SkymodelInputError) as e:
-        volumetric.volume_layers(plan, 8)
+        volumetric.volume_layers(sky, 8)
     assert e.value.parameter == "n_layers"
 
 
@@ -154,9 +154,9 @@ def test_closure_split_keeps_totals_and_luminance_and_gives_one_share_per_specie
     """Cycles mixes phase closures with one weight per closure in all channels (docs/blender.md):
     the split must keep each channel's total, give every closure the colour of the total (so that
     mixing is the same in every channel), and keep each species' luminance-weighted scattering."""
-    plan = physics.resolve(physics.SkyParams(location="urban", month=7, sun_elevation_deg=30, mode="VOLUMETRIC",
-                                             n_layers=6))
-    vol = volumetric.volume_layers(plan, 6)
+    sky = physics.resolve(physics.SkyParams(location="urban", month=7, sun_elevation_deg=30, mode="VOLUMETRIC",
+                                            n_layers=6))
+    vol = volumetric.volume_layers(sky, 6)
     lay, w = vol["layered"], vol["weights"]
     raw = [volumetric.project(lay.rayleigh_scattering, w)] + [volumetric.project(a, w)
                                                               for a in lay.aerosol_scattering_by_regime]
