@@ -1,5 +1,5 @@
 """Benchmark: what each effect of the sky contributes, measured with the marcher, for the
-effect planner (``skymodel/planner.py``); and the proof that the planner's plans pay.
+effect planner (``skymodel/planner/``); and the proof that the planner's plans pay.
 
 Two modes:
 
@@ -58,8 +58,9 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import command_line, git_revision, machine  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-EFFECTS_JSON = os.path.join(ROOT, "presets", "planner", "effects.json")
-PROOF_JSON = os.path.join(ROOT, "presets", "planner", "proof.json")
+# the package's tables (skymodel/data/presets/planner since 52f0e5b; the planner reads them there)
+EFFECTS_JSON = os.path.join(ROOT, "skymodel", "data", "presets", "planner", "effects.json")
+PROOF_JSON = os.path.join(ROOT, "skymodel", "data", "presets", "planner", "proof.json")
 DOC = os.path.join(ROOT, "docs", "planner.md")
 
 ELEVATIONS_DEG = (-6, -4, -2, 0, 2, 5, 10, 20, 30, 45, 60, 90)
@@ -342,9 +343,9 @@ def run_proof(write: bool, width: int) -> int:
             m = SkyMarcher(prof, el, 180.0, 0.0, QUALITY["final"])
             return m, m.radiance(dirs)
 
-        def planned():
+        def planned():  # as the add-on builds it: the planner's own way of carrying out a plan
             wl = default_wavelengths(p.wavelength_step_nm)
-            prof = p.apply_to_profile(atm.optical_profile(wl))
+            prof = p.apply_to_atmosphere(atm).optical_profile(wl)
             if p.n_layers:
                 prof = prof.layered(n_layers=p.n_layers)
             m = SkyMarcher(prof, el, 180.0, 0.0, p.march_settings(QUALITY["final"]))
@@ -439,8 +440,8 @@ def write_doc(meta):
              f"    {cmd}", "",
              f"Both builds rendered with the marcher on an equirectangular camera of {cam['width']}x{cam['height']} "
              "(a reduced size; the plan's angular-resolution decision is the width Blender gets). Everything on: "
-             + meta["everything_on"] + ". Planned: the plan's spectral grid, orders, medium (effects left out "
-             "removed from the profile) and, with shells, the layered profile. Times: the fastest of "
+             + meta["everything_on"] + ". Planned: the plan's spectral grid, orders, atmosphere (effects left out "
+             "removed: `Plan.apply_to_atmosphere`, as the add-on builds it) and, with shells, the layered profile. Times: the fastest of "
              + str(meta.get("repeats", 2)) + " alternated runs of each build. Error: the planner's metric (mean "
              "CIEDE2000 of the tone-mapped sky over the view bands the cameras see, or of the light on a horizontal "
              "surface, whichever is larger) of the planned render against the everything-on render. The "

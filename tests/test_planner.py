@@ -153,14 +153,26 @@ def test_overrides_are_honoured(effects):
     assert q.predicted_error > plan(landscape(), effects=effects, accuracy=None).predicted_error
 
 
-def test_plan_applies_to_profile_and_settings(effects):
+def test_plan_applies_to_atmosphere_and_settings(effects):
     from skymodel import Atmosphere
+    from skymodel.planner import NO_OZONE_DU
 
     p = plan(product_shot(), effects=effects, accuracy=None)
-    prof = Atmosphere(location="rural", month=6).optical_profile([450.0, 550.0, 650.0])
-    out = p.apply_to_profile(prof)
-    assert not np.any(out.ozone_absorption) and np.any(prof.ozone_absorption)
+    assert not p["ozone"].on and p.atmosphere_changes() == {"ozone_du": NO_OZONE_DU}
+    atm = Atmosphere(location="rural", month=6)
+    wl = [450.0, 550.0, 650.0]
+    prof, out = atm.optical_profile(wl), p.apply_to_atmosphere(atm).optical_profile(wl)
+    assert np.all(out.ozone_absorption <= 1e-8 * prof.ozone_absorption.max()) and np.any(prof.ozone_absorption)
     assert np.array_equal(out.rayleigh_scattering, prof.rayleigh_scattering)
+    assert np.array_equal(out.aerosol_scattering_by_regime, prof.aerosol_scattering_by_regime)
+    # everything left out: no aerosol of any kind, no ground reflection
+    off = plan(product_shot(), effects=effects, accuracy=None,
+               overrides={"aerosols": False, "ozone": False, "ground_reflection": False})
+    bare = off.apply_to_atmosphere(atm).optical_profile(wl)
+    assert not np.any(bare.aerosol_scattering_by_regime) and not np.any(bare.aerosol_absorption)
+    assert not np.any(bare.ground_albedo)
+    everything = plan(product_shot(), effects=effects, accuracy=None, overrides={k: True for k in PHYSICAL})
+    assert everything.apply_to_atmosphere(atm) is atm
     s = p.march_settings()
     assert s.orders == p.orders and s.earth_shadow == p["earth_shadow"].on
 

@@ -1,0 +1,162 @@
+"""The measured tables the planner reads, never guesses, and the look-ups in them.
+
+* ``skymodel/data/presets/planner/effects.json`` (``benchmarks/bench_planner.py --write``):
+  for sun elevations -6..90 degrees, the error of switching each effect off or
+  simplifying it, for the sky seen directly (by view-elevation band, :data:`BANDS_DEG`)
+  and for the sky as lighting, the aerial-perspective error vs distance, and each
+  render's time (:class:`_EffectTable`);
+* ``skymodel/data/presets/accuracy/measured.json`` (the renderer's accuracy benchmark),
+  optional: its knob rows (wavelengths, orders, layers) against its own converged
+  reference, for three scenes interpolated linearly in their sun elevation
+  (:class:`_AccuracyTable`).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+
+import numpy as np
+
+from skymodel.data import DATA_DIR
+from skymodel.planner.scene import SceneDescription
+
+EFFECTS_PATH = str(DATA_DIR / "presets" / "planner" / "effects.json")
+ACCURACY_PATH = str(DATA_DIR / "presets" / "accuracy" / "measured.json")
+
+#: Metric names in the tables for each tolerance kind: (sky band key, lighting key, aerial key).
+_METRIC = {"de2000": ("de2000_mean", "de2000", "de2000_max"),
+           "radiance_rel": ("radiance_rel_mean", "illuminance_rel", "radiance_rel_max")}
+#: View-elevation bands of the effect table, degrees.
+BANDS_DEG = {"ground": (-90.0, 0.0), "horizon": (0.0, 10.0), "low": (10.0, 30.0), "high": (30.0, 90.0)}
+#: Wavelength counts of the accuracy table's ``wavelengths`` knob -> step on 380..780 nm.
+_WL_COUNT_STEP = {81: 5.0, 41: 10.0, 21: 20.0, 11: 40.0}
+
+
+@functools.lru_cache(maxsize=8)
+def _load_json(path: str, mtime: float) -> dict:
+    with open(path, encoding="utf-8") as f:
+        return json.load(f)
+
+
+def load_table(path_or_dict):
+    """A table given as a dict, a path, or None (-> None)."""
+    if path_or_dict is None or isinstance(path_or_dict, dict):
+        return path_or_dict
+    p = os.fspath(path_or_dict)
+    if not os.path.isfile(p):
+        return None
+    return _load_json(p, os.path.getmtime(p))
+
+
+class _EffectTable:
+    """Look-ups in ``skymodel/data/presets/planner/effects.json`` at a sun elevation."""
+
+    def __init__(self, table: dict):
+        self.table = table
+        rows = sorted(table["rows"], key=lambda r: r["sun_elevation_deg"])
+        if not rows:
+            raise ValueError("effect table has no rows")
+        self.rows = rows
+        self.elev = np.array([r["sun_elevation_deg"] for r in rows], float)
+
+    def _interp(self, el, fn):
+        vals = np.array([fn(r) for r in self.rows], float)
+        return float(np.interp(el, self.elev, vals))
+
+    def has(self, effect) -> bool:
+        return all(effect in r["effects"] for r in self.rows)
+
+    def error(self, effect, el, scene) -> float:
+        band_key, light_key, _ = _METRIC[scene.tolerance_kind]
+        bands = visible_bands(scene)
+
+        def one(r):
+            e = r["effects"][effect]
+            light = e["lighting"][light_key]
+            if not scene.sky_visible or not bands:
+                return light
+            return max([light] + [e["sky"][b][band_key] for b in bands])
+
+        return max(0.0, self._interp(el, one))
+
+    def time(self, effect, el) -> float:
+        if effect == "reference":
+            return self._interp(el, lambda r: r["reference"]["time_s"])
+        return self._interp(el, lambda r: r["effects"][effect]["time_s"])
+
+    def reference_orders(self, el) -> int:
+        return int(round(self._interp(el, lambda r: r["reference"]["orders"])))
+
+    def aerial_error(self, el, distance_m, kind) -> float:
+        if distance_m <= 0:
+            return 0.0
+        key = _METRIC[kind][2]
+
+        def one(r):
+            ap = r["aerial_perspective"]
+            d = np.array([x["distance_m"] for x in ap], float)
+            v = np.array([x[key] for x in ap], float)
+            # linear in log-distance inside the table; below its first distance the error
+            # scales with the distance (optical depth ~ distance), beyond its last it is held
+            if distance_m < d[0]:
+                return float(v[0] * distance_m / d[0])
+            return float(np.interp(np.log(distance_m), np.log(d), v))
+
+        return self._interp(el, one)
+
+    def knob_rows(self, prefix) -> dict:
+        """{value: effect name} of the effects named ``prefix<value>`` (orders_2, layers_8...)."""
+        out = {}
+        for name in self.rows[0]["effects"]:
+            if name.startswith(prefix) and self.has(name):
+                try:
+                    out[float(name[len(prefix):])] = name
+                except ValueError:
+                    pass
+        return out
+
+
+class _AccuracyTable:
+    """Look-ups in ``skymodel/data/presets/accuracy/measured.json`` (issue 3's benchmark), interpolated
+    linearly in the sun elevation of its scenes and held beyond the first and last."""
+
+    def __init__(self, table: dict):
+        self.table = table
+        scenes = table.get("scenes", {})
+        self.scenes = sorted(scenes, key=lambda s: float(scenes[s]["sun_elevation_deg"]))
+        self.elev = np.array([float(scenes[s]["sun_elevation_deg"]) for s in self.scenes], float)
+
+    def _interp(self, el, values: dict):
+        names = [s for s in self.scenes if s in values]
+        if not names:
+            return None
+        x = np.array([float(self.table["scenes"][s]["sun_elevation_deg"]) for s in names])
+        y = np.array([float(values[s]) for s in names])
+        return float(np.interp(el, x, y))
+
+    def knob(self, knob, el, metric) -> dict:
+        """{value: (error, time_s)} of one knob, interpolated to the sun elevation."""
+        by_value: dict = {}
+        for r in self.table.get("rows", []):
+            if r.get("knob") != knob:
+                continue
+            by_value.setdefault(r["value"], {})[r["scene"]] = r
+        out = {}
+        for value, per_scene in by_value.items():
+            err = self._interp(el, {s: r[metric] for s, r in per_scene.items() if r.get(metric) is not None})
+            t = self._interp(el, {s: r["time_s"] for s, r in per_scene.items() if r.get("time_s") is not None})
+            if err is not None:
+                out[value] = (err, t)
+        return out
+
+    def preset_time(self, preset, el):
+        p = self.table.get("presets", {}).get(preset, {})
+        return self._interp(el, {s: v["time_s"] for s, v in p.items() if "time_s" in v})
+
+
+def visible_bands(scene: SceneDescription) -> list[str]:
+    """The effect table's view-elevation bands the cameras see."""
+    lo, hi = scene.elevation_range_deg
+    return [b for b, (a, z) in BANDS_DEG.items() if hi > a and lo < z] if scene.sky_visible else []
