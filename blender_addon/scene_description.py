@@ -38,8 +38,6 @@ OVERRIDE_PROPS = {
     "sun_disc": "override_sun_disc",
     "aerial_perspective": "override_aerial_perspective",
 }
-#: Ozone column (DU) standing for "no ozone" (the core needs a positive column).
-NO_OZONE_DU = 1e-6
 
 
 def _bound_objects(scene):
@@ -128,19 +126,18 @@ def make_plan(scene, settings):
 
 
 def params_from_plan(params, plan):
-    """The build parameters (``physics.SkyParams``) that carry out ``plan``."""
+    """The build parameters (``physics.SkyParams``) that carry out ``plan``: the effects it
+    leaves out as the planner says (:func:`skymodel.planner.apply.atmosphere_changes`, whose
+    keywords ``SkyParams`` shares with ``Atmosphere``; the benchmark that proves the plans
+    builds the same way), its numerical choices in the add-on's terms (orders 0 = until
+    converged)."""
     changes = {"mode": "VOLUMETRIC" if plan.mode == "volumetric" else "ENVIRONMENT",
                "wavelength_step_nm": plan.wavelength_step_nm,
                "orders": plan.orders if plan.orders is not None else 0,
                "earth_shadow": bool(plan["earth_shadow"].on)}
     if plan.n_layers:
         changes["n_layers"] = int(plan.n_layers)
-    if not plan["aerosols"].on:
-        changes.update(aerosol="none", aod550=None, turbidity=None, stratospheric="none")
-    if not plan["ozone"].on:
-        changes["ozone_du"] = NO_OZONE_DU
-    if not plan["ground_reflection"].on:
-        changes["albedo"] = 0.0
+    changes.update(plan.atmosphere_changes())
     if not int(params.image_width):
         changes["image_width"] = environment_width(plan, params.quality)
     return dataclasses.replace(params, **changes)
