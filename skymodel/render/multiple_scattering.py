@@ -694,7 +694,6 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
     M = column_transport_matrix(grid, rays, row_scale)
     G = ground_transmittance_vector(rays)
     species = scattering_species(profile, medium, grid)
-    radiance = first_order_radiance(profile, medium, sun_table, grid, rays, M, G, spherical=spherical_orders >= 1)
     spherical = None
     if spherical_orders > 1:
         spherical = _SphericalTransport(
@@ -702,7 +701,11 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
             r0=rays.r0, mu0=rays.mu0, t=rays.t, dt=rays.dt, h=rays.h, R=profile.planet_radius_m, hits=rays.hits,
             ground_t=rays.ground_t, h_nodes=grid.h_nodes, mu_nodes=grid.mu_nodes, phi_nodes=grid.phi_nodes,
             mus_nodes=grid.mus_nodes, wavelengths_nm=grid.wavelengths_nm, probe_step_nm=spherical_probe_step_nm)
-    series = sum_scattering_orders(radiance, species, M, G, grid, profile.ground_albedo.astype(np.float32),
+    # the first order's radiance goes straight into the series, which lets it go after order 2
+    # (held here, it would keep one more field-sized array alive through every order)
+    series = sum_scattering_orders(first_order_radiance(profile, medium, sun_table, grid, rays, M, G,
+                                                        spherical=spherical_orders >= 1),
+                                   species, M, G, grid, profile.ground_albedo.astype(np.float32),
                                    orders=orders, max_orders=max_orders, tolerance=tolerance, spherical=spherical,
                                    spherical_orders=spherical_orders, progress=progress)
     if orders is None:
