@@ -324,7 +324,7 @@ def time_iso(time_utc) -> str:
     t = _sun.as_utc_datetime64(str(time_utc).strip() if isinstance(time_utc, str) else time_utc)
     if t.ndim:
         raise SkymodelInputError("time_utc", time_utc, "one date-time")
-    return str(t.astype("datetime64[s]")) + "Z"
+    return str(np.datetime_as_string(t, unit="s")) + "Z"
 
 
 def month_of(time_utc) -> int | None:
