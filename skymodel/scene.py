@@ -43,7 +43,7 @@ from skymodel.data import load_toml
 from skymodel.errors import SkymodelInputError
 
 __all__ = ["Parameter", "PARAMETERS", "parameter", "default", "check", "SunPlacement", "place_sun",
-           "time_iso", "month_of"]
+           "time_iso", "month_of", "Instant", "resolve_time", "day_of_year"]
 
 
 @dataclass(frozen=True)
@@ -201,6 +201,12 @@ _ALL = [
     _P("time_utc", "", "UTC date-time, ISO 8601 (2026-06-21T12:00:00Z): places the sun at the location and "
        f"sets the month; years {_sun.SUPPORTED_YEARS[0]}..{_sun.SUPPORTED_YEARS[1]}", flag="--time",
        default_note="none (the sun from its elevation and azimuth)"),
+    _P("day_of_year", "", "day of the year, 1 = 1 January (selects the ozone climatology, interpolated "
+       "between mid-month values; with --time, the date's)", minimum=1, maximum=366,
+       default_note="the month's mean"),
+    _P("timezone", "", "time zone of --time when it has no offset: an IANA name (Europe/Madrid, daylight "
+       "saving applied; data from the tzdata package), UTC, or an offset such as +02:00", flag="--timezone",
+       default_note="UTC (a --time without an offset is UTC)"),
     _P("year", "", "year of the date (UTC)", default=2026, minimum=_sun.SUPPORTED_YEARS[0],
        maximum=_sun.SUPPORTED_YEARS[1], integer=True),
     _P("day", "", "day of the month (UTC)", default=21, minimum=1, maximum=31, integer=True),
@@ -291,13 +297,17 @@ def check(name: str, value):
 class SunPlacement:
     """Where the sun is: elevation [deg] above the horizon, azimuth [deg] clockwise from
     north in [0, 360), the Earth-sun distance [AU] (1 without a date), the date as ISO 8601
-    UTC text and its month (None without a date)."""
+    UTC text, its month and day of the year (UTC), and the local time and zone it was
+    given in (None without a date)."""
 
     elevation_deg: float
     azimuth_deg: float
     earth_sun_distance_au: float = 1.0
     time_utc: str | None = None
     month: int | None = None
+    time_local: str | None = None  #: the wall-clock time with its offset (``2026-06-21T21:30:00+02:00``)
+    timezone: str | None = None  #: the zone it was read in (``Europe/Madrid``, ``UTC``, ``+02:00``)
+    day_of_year: int | None = None  #: the UTC date's day of the year, 1..366 (selects the ozone)
 
 
 def time_iso(time_utc) -> str:
@@ -334,15 +344,168 @@ def month_of(time_utc) -> int | None:
     return int(time_iso(time_utc)[5:7])
 
 
+@dataclass(frozen=True)
+class Instant:
+    """A moment: ``utc`` (aware, UTC) and ``local`` (aware, in ``timezone``) datetimes;
+    ``timezone`` is the zone's name (``Europe/Madrid``, ``UTC`` or an offset ``+02:00``)."""
+
+    utc: _dt.datetime
+    local: _dt.datetime
+    timezone: str
+
+    @property
+    def utc_iso(self) -> str:
+        """``2026-06-21T19:30:00Z``."""
+        return self.utc.strftime("%Y-%m-%dT%H:%M:%SZ")
+
+    @property
+    def local_iso(self) -> str:
+        """``2026-06-21T21:30:00+02:00``."""
+        return self.local.isoformat(timespec="seconds")
+
+
+_OFFSET_TEXT = "an IANA time zone name (Europe/Madrid), UTC, or an offset such as +02:00"
+
+
+def time_zone(name) -> _dt.tzinfo | None:
+    """The zone named ``name``: an IANA name (read with :mod:`zoneinfo`, data from the
+    system or the ``tzdata`` package), ``UTC``/``Z``, or a fixed offset (``+02:00``,
+    ``-0530``, ``UTC+2``). None for None. Raises naming ``timezone``."""
+    if name is None or isinstance(name, _dt.tzinfo):
+        return name
+    text = str(name).strip()
+    if not text:
+        raise SkymodelInputError("timezone", name, _OFFSET_TEXT)
+    if text.upper() in ("UTC", "Z", "GMT"):
+        return _dt.timezone.utc
+    offset = text[3:] if text.upper().startswith(("UTC", "GMT")) else text
+    if offset[:1] in "+-" and offset[1:2].isdigit():
+        sign = -1 if offset[0] == "-" else 1
+        body = offset[1:].replace(":", "")
+        try:
+            hours, minutes = (int(body[:-2] or 0), int(body[-2:])) if len(body) > 2 else (int(body), 0)
+        except ValueError:
+            raise SkymodelInputError("timezone", name, _OFFSET_TEXT) from None
+        if hours > 14 or minutes > 59:
+            raise SkymodelInputError("timezone", name, "an offset within -14:00..+14:00")
+        return _dt.timezone(sign * _dt.timedelta(hours=hours, minutes=minutes))
+    import zoneinfo
+
+    try:
+        return zoneinfo.ZoneInfo(text)
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+        raise SkymodelInputError("timezone", name, _OFFSET_TEXT + " (not found in the IANA database)") from None
+
+
+def _zone_name(tz) -> str:
+    if tz is _dt.timezone.utc:
+        return "UTC"
+    key = getattr(tz, "key", None)
+    if key:
+        return key
+    off = tz.utcoffset(None)
+    total = int(off.total_seconds() // 60)
+    return f"{'-' if total < 0 else '+'}{abs(total) // 60:02d}:{abs(total) % 60:02d}"
+
+
+def _parse_datetime(value) -> _dt.datetime:
+    """A date-time as a :class:`datetime.datetime` (naive, or aware when it has an offset)."""
+    if isinstance(value, (tuple, list)):
+        try:
+            year, month, day, hour, minute = value
+        except ValueError:
+            raise SkymodelInputError("time_utc", value, "(year, month, day, hour, minute)") from None
+        year, month = check("year", year), check("month", month)
+        last = calendar.monthrange(year, month)[1]
+        day = check("day", day)
+        if day > last:
+            raise SkymodelInputError("day", day, f"a day 1..{last} for {year}-{month:02d}")
+        return _dt.datetime(year, month, day, check("hour", hour), check("minute", minute))
+    if isinstance(value, _dt.datetime):
+        return value
+    if isinstance(value, _dt.date):
+        return _dt.datetime(value.year, value.month, value.day)
+    if isinstance(value, np.datetime64):
+        value = np.datetime_as_string(value.astype("datetime64[us]"), unit="us")
+    if isinstance(value, str):
+        try:
+            return _dt.datetime.fromisoformat(value.strip())
+        except ValueError:
+            pass
+    raise SkymodelInputError("time_utc", value, "an ISO 8601 date-time (2026-06-21T21:30, with an optional "
+                                                "offset +02:00 or Z)")
+
+
+def resolve_time(time, timezone=None) -> Instant:
+    """The instant a date-time names, read in ``timezone``.
+
+    Parameters
+    ----------
+    time : ISO 8601 text (``2026-06-21T21:30``, ``2026-06-21T21:30+02:00``, ``...Z``), a
+        :class:`datetime.datetime`, numpy ``datetime64`` (naive), or the fields ``(year,
+        month, day, hour, minute)``.
+    timezone : where a time without an offset is read (:func:`time_zone`: IANA name,
+        ``UTC`` or a fixed offset); None: such a time is UTC. A time with an offset and
+        a zone must agree (the offset then picks one of the two readings of a repeated hour).
+
+    Raises
+    ------
+    SkymodelInputError
+        naming ``time_utc`` for a local time that does not exist (skipped when the clocks
+        go forward) or happens twice (when they go back; give the offset to choose), for
+        an offset that is not the zone's at that moment, and for years outside the range
+        :func:`skymodel.sun.solar_position` supports; naming ``timezone`` for an unknown zone.
+    """
+    tz = time_zone(timezone)
+    dt = _parse_datetime(time)
+    text = time if isinstance(time, str) else dt.isoformat()
+    if dt.tzinfo is not None and dt.utcoffset() is not None:
+        if tz is None:
+            tz = _dt.timezone(dt.utcoffset())
+        elif dt.astimezone(tz).utcoffset() != dt.utcoffset():
+            raise SkymodelInputError("time_utc", text, f"the offset of {_zone_name(tz)} at that moment "
+                                                       f"({dt.astimezone(tz).isoformat(timespec='minutes')[-6:]}), "
+                                                       "or no offset")
+        local = dt.astimezone(tz)
+    else:
+        tz = tz or _dt.timezone.utc
+        first, second = dt.replace(tzinfo=tz, fold=0), dt.replace(tzinfo=tz, fold=1)
+        if first.utcoffset() != second.utcoffset():
+            back = first.astimezone(_dt.timezone.utc).astimezone(tz).replace(tzinfo=None)
+            name = _zone_name(tz)
+            if back != dt:
+                raise SkymodelInputError(
+                    "time_utc", text, f"a local time that exists in {name}: {dt:%Y-%m-%d %H:%M} is skipped there "
+                                      "(the clocks go forward for daylight saving)")
+            raise SkymodelInputError(
+                "time_utc", text, f"an unambiguous local time in {name}: {dt:%Y-%m-%d %H:%M} happens twice there "
+                                  f"(the clocks go back); give the offset: {first.isoformat(timespec='minutes')} or "
+                                  f"{second.isoformat(timespec='minutes')}")
+        local = first
+    utc = local.astimezone(_dt.timezone.utc)
+    time_iso(utc.replace(tzinfo=None))  # the supported years
+    return Instant(utc, local, _zone_name(tz))
+
+
+def day_of_year(time_utc) -> int | None:
+    """The day of the year (1..366) of a UTC date-time accepted by :func:`time_iso`; None for None."""
+    if time_utc is None:
+        return None
+    return int(_dt.date.fromisoformat(time_iso(time_utc)[:10]).timetuple().tm_yday)
+
+
 def place_sun(latitude_deg=None, longitude_deg=None, time_utc=None, elevation_deg=None,
-              azimuth_deg=None) -> SunPlacement:
-    """Place the sun: from a UTC date-time at a place, or from elevation and azimuth.
+              azimuth_deg=None, timezone=None) -> SunPlacement:
+    """Place the sun: from a date-time at a place, or from elevation and azimuth.
 
     Parameters
     ----------
     latitude_deg, longitude_deg : the place [deg north, deg east]; needed with ``time_utc``.
-    time_utc : a date-time accepted by :func:`time_iso` (text, datetime, or
-        ``(year, month, day, hour, minute)``), or None to use the angles.
+    time_utc : a date-time accepted by :func:`resolve_time` (text with or without an
+        offset, datetime, or ``(year, month, day, hour, minute)``), or None to use the angles.
+    timezone : the zone a time without an offset is read in (IANA name such as
+        ``Europe/Madrid``, ``UTC``, or ``+02:00``); None: UTC. Daylight saving applies;
+        a skipped or repeated local time is refused (:func:`resolve_time`).
     elevation_deg : sun elevation [deg]; default the registry's ``sun_elevation``.
     azimuth_deg : sun azimuth [deg] clockwise from north; default the registry's
         ``sun_azimuth``; returned modulo 360.
@@ -354,7 +517,9 @@ def place_sun(latitude_deg=None, longitude_deg=None, time_utc=None, elevation_de
     Raises
     ------
     SkymodelInputError
-        naming ``time_utc`` when both a time and angles are given, or when the date puts
+        naming ``timezone`` for a zone given without a time; naming ``time_utc`` when
+        both a time and angles are given, for a local time that is skipped or repeated in
+        its zone, or when the date puts
         the sun below the lowest elevation allowed (night); naming ``sun_elevation`` /
         ``sun_azimuth`` for angles out of range.
 
@@ -367,7 +532,8 @@ def place_sun(latitude_deg=None, longitude_deg=None, time_utc=None, elevation_de
         if elevation_deg is not None or azimuth_deg is not None:
             raise SkymodelInputError("time_utc", time_utc,
                                      "either a time or a sun elevation/azimuth, not both")
-        iso = time_iso(time_utc)
+        instant = resolve_time(time_utc, timezone)
+        iso = instant.utc_iso
         pos = _sun.solar_position(latitude_deg, longitude_deg, iso)
         elev = float(np.asarray(pos.elevation_deg))
         az = float(np.asarray(pos.azimuth_deg))
@@ -376,7 +542,9 @@ def place_sun(latitude_deg=None, longitude_deg=None, time_utc=None, elevation_de
             raise SkymodelInputError("time_utc", iso, f"a time when the sun is above {lowest:g} degrees "
                                                       f"(it is at {elev:.1f} degrees: night)")
         return SunPlacement(check("sun_elevation", elev), check("sun_azimuth", az) % 360.0, dist, iso,
-                            int(iso[5:7]))
+                            int(iso[5:7]), instant.local_iso, instant.timezone, day_of_year(iso))
+    if timezone is not None:
+        raise SkymodelInputError("timezone", timezone, "a time zone only together with a date-time (--time)")
     elev = check("sun_elevation", default("sun_elevation") if elevation_deg is None else elevation_deg)
     az = check("sun_azimuth", default("sun_azimuth") if azimuth_deg is None else azimuth_deg)
     return SunPlacement(elev, az % 360.0)

@@ -82,17 +82,20 @@ def add_atmosphere_arguments(p: argparse.ArgumentParser) -> None:
 
 def atmosphere_from_args(args):
     """The :class:`~skymodel.optics.atmosphere.Atmosphere` of the parsed atmosphere options
-    (the month from ``--time`` when ``--month`` is not given)."""
+    (the month and day of the year from ``--time``, read in ``--timezone``, when ``--month``
+    is not given: the ozone of that UTC date)."""
     from skymodel.optics.atmosphere import Atmosphere
 
     location = args.location
     if location is None and (args.latitude is None or args.longitude is None or args.aerosol is None):
         location = scene.default("location")
-    month = args.month
-    if month is None:
-        month = scene.month_of(getattr(args, "time_utc", None)) or scene.default("month")
+    month, day = args.month, None
+    if month is None and getattr(args, "time_utc", None) is not None:
+        iso = scene.resolve_time(args.time_utc, getattr(args, "timezone", None)).utc_iso
+        month, day = scene.month_of(iso), scene.day_of_year(iso)
     return Atmosphere(
-        location=location, month=month, latitude=args.latitude, longitude=args.longitude, aerosol=args.aerosol,
+        location=location, month=month or scene.default("month"), day_of_year=day,
+        latitude=args.latitude, longitude=args.longitude, aerosol=args.aerosol,
         aod550=args.aod550, turbidity=args.turbidity, stratospheric=args.stratospheric,
         ozone_du=args.ozone_du, albedo=args.albedo, n_altitudes=args.n_altitudes,
     )
@@ -103,14 +106,16 @@ def add_sun_arguments(p: argparse.ArgumentParser, observer: bool = True) -> None
     g = p.add_argument_group("sun and observer")
     add_option(g, "sun_elevation", default=None)
     add_option(g, "sun_azimuth", default=None)
-    add_option(g, "time_utc", note="not with --sun-elevation/--sun-azimuth")
+    add_option(g, "time_utc", note="not with --sun-elevation/--sun-azimuth; local time with --timezone")
+    add_option(g, "timezone")
     if observer:
         add_option(g, "observer_altitude")
 
 
 def sun_from_args(args, atm) -> scene.SunPlacement:
     """The sun of the parsed sun options at the atmosphere's place (:func:`skymodel.scene.place_sun`)."""
-    return scene.place_sun(atm.latitude, atm.longitude, args.time_utc, args.sun_elevation, args.sun_azimuth)
+    return scene.place_sun(atm.latitude, atm.longitude, args.time_utc, args.sun_elevation, args.sun_azimuth,
+                           timezone=getattr(args, "timezone", None))
 
 
 def profile_for_sun(atm, wavelengths_nm, sun: scene.SunPlacement):

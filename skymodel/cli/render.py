@@ -82,7 +82,8 @@ def cmd_render(args) -> int:
                                     wavelengths=wl, camera=camera, exposure_ev=args.exposure,
                                     colour_space="xyz" if args.xyz else "rec709",
                                     metadata={"atmosphere": profile.metadata, "sun_elevation_deg": sun.elevation_deg,
-                                              "sun_azimuth_deg": sun.azimuth_deg,
+                                              "sun_azimuth_deg": sun.azimuth_deg, "time_utc": sun.time_utc,
+                                              "time_local": sun.time_local, "timezone": sun.timezone,
                                               "observer_altitude_m": args.observer_altitude, "quality": quality})
     for path in written.values():
         prog.stage(f"wrote {path}")

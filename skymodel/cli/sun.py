@@ -15,17 +15,20 @@ def add_command(sub) -> None:
     add_option(p, "latitude", required=True)
     add_option(p, "longitude", required=True)
     add_option(p, "time_utc", required=True)
+    add_option(p, "timezone")
     p.add_argument("--refraction", action="store_true", help="apparent elevation (with standard refraction)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_sun)
 
 
 def cmd_sun(args) -> int:
-    from skymodel import sun
+    from skymodel import scene, sun
 
-    pos = sun.solar_position(args.latitude, args.longitude, args.time_utc, refraction=args.refraction)
+    instant = scene.resolve_time(args.time_utc, args.timezone)
+    pos = sun.solar_position(args.latitude, args.longitude, instant.utc_iso, refraction=args.refraction)
     out = {
-        "latitude_deg": args.latitude, "longitude_deg": args.longitude, "time_utc": args.time_utc,
+        "latitude_deg": args.latitude, "longitude_deg": args.longitude, "time_utc": instant.utc_iso,
+        "time_local": instant.local_iso, "timezone": instant.timezone,
         "elevation_deg": float(np.asarray(pos.elevation_deg)), "azimuth_deg": float(np.asarray(pos.azimuth_deg)),
         "earth_sun_distance_au": float(np.asarray(pos.earth_sun_distance_au)),
         "refraction": bool(args.refraction),
@@ -33,6 +36,7 @@ def cmd_sun(args) -> int:
     if args.json:
         print(json.dumps(out, indent=1))
     else:
-        print(f"elevation {out['elevation_deg']:.4f} deg, azimuth {out['azimuth_deg']:.4f} deg (clockwise from north), "
+        print(f"{instant.utc_iso} ({instant.local_iso} {instant.timezone}): "
+              f"elevation {out['elevation_deg']:.4f} deg, azimuth {out['azimuth_deg']:.4f} deg (clockwise from north), "
               f"distance {out['earth_sun_distance_au']:.5f} AU")
     return 0

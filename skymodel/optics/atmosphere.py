@@ -52,6 +52,9 @@ class Atmosphere:
         lists them), or None when ``latitude``/``longitude`` and ``aerosol`` are given.
     month : 1..12, selects the ozone climatology (and nothing else: aerosol types carry
         no seasonal cycle in the sources).
+    day_of_year : 1..366 (1 = 1 January), or None; when given, the ozone climatology of
+        that day (interpolated between mid-month values, :func:`skymodel.optics.ozone.month_weights`)
+        instead of ``month``'s mean, so consecutive days never jump.
     latitude, longitude : degrees (north, east positive); override the preset's.
     aerosol : tropospheric aerosol type (``skymodel presets``) or ``"none"``, aliases
         accepted (``"desert_dust"`` is ``"desert"``); default the location's.
@@ -68,6 +71,7 @@ class Atmosphere:
 
     location: str | None = scene.default("location")
     month: int = scene.default("month")
+    day_of_year: float | None = scene.default("day_of_year")
     latitude: float | None = scene.default("latitude")
     longitude: float | None = scene.default("longitude")
     aerosol: str | None = scene.default("aerosol")
@@ -86,6 +90,7 @@ class Atmosphere:
         if isinstance(self.month, bool) or not isinstance(self.month, (int, np.integer)):
             raise SkymodelInputError("month", self.month, scene.parameter("month").allowed_text())
         set_("month", scene.check("month", self.month))
+        set_("day_of_year", scene.check("day_of_year", self.day_of_year))
         preset = {}
         if self.location is not None:
             name = scene.check("location", self.location)
@@ -128,7 +133,8 @@ def _build_profile(atm: Atmosphere, wavelengths: tuple) -> OpticalProfile:
     wl = np.asarray(wavelengths, dtype=float)
     h = atm.altitudes_m
     ray = rayleigh.scattering_coefficient(h, wl, atm.co2_ppm)
-    o3_density = ozone.ozone_number_density(h, atm.month, atm.latitude, total_column_du=atm.ozone_du)
+    o3_density = ozone.ozone_number_density(h, atm.month, atm.latitude, total_column_du=atm.ozone_du,
+                                            day_of_year=atm.day_of_year)
     o3 = o3_density[:, None] * ozone.ozone_cross_section(wl)[None, :]
     tau_r550 = float(rayleigh.optical_depth([550.0], atm.co2_ppm, h)[0])
     aer = aerosols.aerosol_optics(
@@ -141,6 +147,7 @@ def _build_profile(atm: Atmosphere, wavelengths: tuple) -> OpticalProfile:
         "latitude_deg": atm.latitude,
         "longitude_deg": atm.longitude,
         "month": atm.month,
+        "day_of_year": atm.day_of_year,
         "aerosol": atm.aerosol,
         "stratospheric": atm.stratospheric,
         "aod550": float(aer.aod550),

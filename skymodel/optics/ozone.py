@@ -26,7 +26,12 @@ Profiles
       this climatology (it holds ~0.1 DU);
     * the few missing (0.0) values at the bottom of some southern profiles (below the
       Antarctic surface, and 45S at 0 km) are replaced by the lowest non-zero value above;
-    * months are monthly means (no interpolation between months).
+    * time of year: the twelve monthly means are taken as the values at mid-month (day
+      ``MONTH_NODE_DAYS``: the middle of each month of a 365-day year) and, for a day of
+      the year, the mixing ratio is interpolated linearly between the two nodes around it,
+      periodically (mid-December to mid-January wraps over the new year). The column then
+      changes by the same amount every day between two mid-months, with no jump at month
+      boundaries. Given a ``month`` alone (no day) the month's own table is used, as before.
 
     With ``total_column_du`` the profile shape is kept and scaled so that its column is that
     many Dobson units (1 DU = 2.686763e20 molecules m^-2). The scale factor comes from the
@@ -69,6 +74,31 @@ LEVELS_M = np.arange(61) * 1000.0
 
 _ALT_MIN_M, _ALT_MAX_M = -5_000.0, 120_000.0
 
+_DAYS_IN_MONTH = np.array([31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31], dtype=float)
+#: Days of a (365-day) year.
+YEAR_DAYS = 365.0
+#: Where the monthly means sit in the year: the middle of each month, in days since 1 January
+#: 00:00 (15.5 = 16 January 00:00).
+MONTH_NODE_DAYS = np.concatenate([[0.0], np.cumsum(_DAYS_IN_MONTH)[:-1]]) + _DAYS_IN_MONTH / 2.0
+
+
+def month_weights(day_of_year) -> tuple[int, int, float]:
+    """The two months (1..12) whose mid-month nodes enclose ``day_of_year`` and the weight
+    of the second: ``(m0, m1, w)``, the value being ``(1 - w) f(m0) + w f(m1)``.
+
+    ``day_of_year`` is 1..366 (1 = 1 January; an integer day stands for its noon, so day N
+    sits at N - 0.5 days since 1 January 00:00); fractional days are allowed. Day 366 of a
+    leap year wraps to the first days of the next (the nodes are those of a 365-day year).
+    """
+    d = _check_day(day_of_year)
+    t = (d - 0.5) % YEAR_DAYS
+    i1 = int(np.searchsorted(MONTH_NODE_DAYS, t, side="right"))  # 0..12
+    i0 = i1 - 1
+    lo = MONTH_NODE_DAYS[i0] if i0 >= 0 else MONTH_NODE_DAYS[-1] - YEAR_DAYS
+    hi = MONTH_NODE_DAYS[i1] if i1 < 12 else MONTH_NODE_DAYS[0] + YEAR_DAYS
+    w = float((t - lo) / (hi - lo))
+    return (i0 % 12) + 1, (i1 % 12) + 1, w
+
 
 # --------------------------------------------------------------------------- tables
 @functools.lru_cache(maxsize=1)
@@ -104,6 +134,22 @@ def _check_month(month) -> int:
     if isinstance(month, (bool, np.bool_)) or not isinstance(month, numbers.Integral) or not 1 <= int(month) <= 12:
         raise SkymodelInputError("month", month, "an integer 1..12")
     return int(month)
+
+
+def _check_day(day_of_year) -> float:
+    if isinstance(day_of_year, (bool, np.bool_)) or not isinstance(day_of_year, numbers.Real) \
+            or not 1.0 <= float(day_of_year) < 367.0:
+        raise SkymodelInputError("day_of_year", day_of_year, "a day of the year in 1..366")
+    return float(day_of_year)
+
+
+def _month_table(month, day_of_year) -> np.ndarray:
+    """VMR [band, level] (ppmv) for a month (its mean) or a day of the year (interpolated)."""
+    if day_of_year is None:
+        return _vmr_table()[_check_month(month) - 1]
+    m0, m1, w = month_weights(day_of_year)
+    table = _vmr_table()
+    return table[m0 - 1] if w == 0.0 else (1.0 - w) * table[m0 - 1] + w * table[m1 - 1]
 
 
 def _check_latitude(latitude_deg) -> float:
@@ -145,12 +191,13 @@ def ozone_cross_section(wavelengths_nm=None) -> np.ndarray:
     return sigma
 
 
-def ozone_vmr_ppmv(altitudes_m, month: int, latitude_deg: float = 45.0) -> np.ndarray:
-    """Climatological ozone volume mixing ratio, ppmv, same shape as ``altitudes_m``."""
-    m = _check_month(month)
+def ozone_vmr_ppmv(altitudes_m, month: int | None, latitude_deg: float = 45.0, day_of_year=None) -> np.ndarray:
+    """Climatological ozone volume mixing ratio, ppmv, same shape as ``altitudes_m``: of
+    ``month`` (1..12, its mean), or of ``day_of_year`` (1..366, interpolated between
+    mid-month nodes; then ``month`` is not used)."""
+    table = _month_table(month, day_of_year)
     lat = _check_latitude(latitude_deg)
     z = _check_altitudes(altitudes_m)
-    table = _vmr_table()[m - 1]
     latc = min(max(lat, BAND_CENTRES_DEG[0]), BAND_CENTRES_DEG[-1])
     i1 = int(np.clip(np.searchsorted(BAND_CENTRES_DEG, latc, side="right"), 1, BAND_CENTRES_DEG.size - 1))
     i0 = i1 - 1
@@ -162,19 +209,23 @@ def ozone_vmr_ppmv(altitudes_m, month: int, latitude_deg: float = 45.0) -> np.nd
     return vmr * decay
 
 
-def ozone_number_density(altitudes_m, month: int, latitude_deg: float = 45.0, total_column_du=None,
-                         air_number_density=None) -> np.ndarray:
+def ozone_number_density(altitudes_m, month: int | None, latitude_deg: float = 45.0, total_column_du=None,
+                         air_number_density=None, day_of_year=None) -> np.ndarray:
     """Ozone number density, molecules m^-3, same shape as ``altitudes_m`` (metres).
 
     ``vmr * N_air``; ``N_air`` is the U.S. Standard Atmosphere 1976 unless
     ``air_number_density`` (m^-3, one value per altitude) is given. With
     ``total_column_du`` (0 < DU <= 1000) the profile is scaled to that column (see the
-    module docstring for on which grid)."""
-    m = _check_month(month)
+    module docstring for on which grid). ``day_of_year`` (1..366): the climatology of that
+    day, interpolated between mid-month nodes, instead of the ``month``'s mean."""
+    if day_of_year is None:
+        m, day = _check_month(month), None
+    else:
+        m, day = None, _check_day(day_of_year)
     lat = _check_latitude(latitude_deg)
     du = _check_du(total_column_du)
     z = _check_altitudes(altitudes_m)
-    vmr = ozone_vmr_ppmv(z, m, lat) * 1e-6
+    vmr = ozone_vmr_ppmv(z, m, lat, day_of_year=day) * 1e-6
     if air_number_density is None:
         from skymodel.optics.standard_atmosphere import number_density
 
@@ -191,7 +242,7 @@ def ozone_number_density(altitudes_m, month: int, latitude_deg: float = 45.0, to
     density = vmr * n_air
     if du is not None:
         if air_number_density is None:
-            factor = du / climatology_total_du(m, lat)
+            factor = du / _climatology_total_du(m, lat, day)
         else:
             zz = np.ravel(z)
             if zz.size < 2 or np.any(np.diff(zz) <= 0.0):
@@ -223,19 +274,22 @@ def ozone_column_du(altitudes_m, number_density_m3) -> float:
 
 
 @functools.lru_cache(maxsize=512)
-def _climatology_total_du(month: int, latitude_deg: float) -> float:
+def _climatology_total_du(month: int | None, latitude_deg: float, day_of_year: float | None = None) -> float:
     z = altitude_grid()
-    return ozone_column_du(z, ozone_number_density(z, month, latitude_deg))
+    return ozone_column_du(z, ozone_number_density(z, month, latitude_deg, day_of_year=day_of_year))
 
 
-def climatology_total_du(month: int, latitude_deg: float = 45.0) -> float:
+def climatology_total_du(month: int | None, latitude_deg: float = 45.0, day_of_year=None) -> float:
     """Total column (DU) of the climatological profile (U.S. Standard Atmosphere air,
-    default 401-point grid 0–100 km)."""
+    default 401-point grid 0–100 km): of ``month``'s mean, or of ``day_of_year`` (1..366,
+    interpolated between mid-month nodes)."""
+    if day_of_year is not None:
+        return _climatology_total_du(None, _check_latitude(latitude_deg), _check_day(day_of_year))
     return _climatology_total_du(_check_month(month), _check_latitude(latitude_deg))
 
 
-def ozone_absorption(altitudes_m, wavelengths_nm, month: int, latitude_deg: float = 45.0, total_column_du=None,
-                     air_number_density=None) -> np.ndarray:
+def ozone_absorption(altitudes_m, wavelengths_nm, month: int | None, latitude_deg: float = 45.0,
+                     total_column_du=None, air_number_density=None, day_of_year=None) -> np.ndarray:
     """Ozone absorption coefficient, m^-1, shape (n_altitudes, n_wavelengths)."""
     z = np.atleast_1d(_check_altitudes(altitudes_m)).ravel()
     sigma = ozone_cross_section(wavelengths_nm)
@@ -247,7 +301,7 @@ def ozone_absorption(altitudes_m, wavelengths_nm, month: int, latitude_deg: floa
             raise SkymodelInputError("air_number_density", air_number_density,
                                      "finite densities >= 0 in m^-3, one per altitude") from None
     density = ozone_number_density(z, month, latitude_deg, total_column_du=total_column_du,
-                                   air_number_density=air_number_density)
+                                   air_number_density=air_number_density, day_of_year=day_of_year)
     k = density[:, None] * sigma[None, :]
     check_finite("ozone_absorption", k)
     return k
