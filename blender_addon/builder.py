@@ -7,10 +7,19 @@ first, the world/scene settings are then switched over with every old value reco
 and only when all of that succeeded are the previous build's datablocks removed. Any
 exception before that point removes what was created and restores what was changed, so
 the scene is exactly as before.
+
+Every setting a build changes outside its own datablocks (exposure, view transform,
+render engine, light-path bounces, the camera's clip end; :meth:`Transaction.set` on any
+datablock but the add-on's settings) is recorded with its value before and after the
+build as JSON on the scene (``scene["skymodel_restore"]``). **Remove Sky** puts each back
+(:func:`restore_settings`), unless the user changed it since (then the user's value
+stays); a rebuild first puts back what the previous build changed, so the record always
+holds the values from before the first build.
 """
 
 from __future__ import annotations
 
+import json
 import math
 import time
 import uuid
@@ -20,6 +29,10 @@ import bpy
 TAG = "skymodel_build"
 COLLECTION_NAME = "Skymodel"
 PREVIOUS_SURFACE = "skymodel_previous_surface"
+#: Scene custom property: JSON list of the settings the build changed, with their values before and after.
+RESTORE_KEY = "skymodel_restore"
+#: Datablock types whose settings a build may change, by RNA type name -> ``bpy.data`` collection.
+_ID_COLLECTIONS = {"Scene": "scenes", "Camera": "cameras", "World": "worlds", "Object": "objects"}
 
 
 def is_ours(id_or_node) -> bool:
@@ -37,6 +50,7 @@ class Transaction:
         self.created: list[tuple[str, object]] = []  # ("images", datablock) / ("node", (tree, node))
         self.undo: list = []
         self.names: list[tuple[object, str]] = []  # (datablock or (tree, node name), wanted name)
+        self.changed: list[dict] = []  # settings changed outside the add-on's data (see RESTORE_KEY)
 
     # -- creation
     def new(self, collection: str, *args, **kwargs):
@@ -68,6 +82,11 @@ class Transaction:
             old = old.copy()
         self.undo.append(lambda o=owner, a=attr, v=old: setattr(o, a, v))
         setattr(owner, attr, value)
+        ref = _setting_ref(owner, attr)
+        if ref is not None:
+            ref["before"], ref["after"] = _plain(old), _plain(getattr(owner, attr))
+            if ref["before"] != ref["after"]:
+                self.changed.append(ref)
 
     def set_key(self, owner, key: str, value):
         had = key in owner.keys()
@@ -135,6 +154,93 @@ class Transaction:
         self.created.clear()
 
 
+# --------------------------------------------------------------------------- restoring settings
+
+
+def _plain(value):
+    """A JSON-able copy of a property value (vectors and colours as lists)."""
+    if isinstance(value, (bool, int, float, str)) or value is None:
+        return value
+    try:
+        return [_plain(v) for v in value]
+    except TypeError:
+        return str(value)
+
+
+def _setting_ref(owner, attr: str) -> dict | None:
+    """Where ``owner.attr`` lives, as JSON-able data (``None`` for the add-on's own settings
+    and for anything that cannot be found again by name)."""
+    try:
+        idb = owner.id_data
+        path = owner.path_from_id() if owner is not idb else ""
+    except (AttributeError, ValueError, TypeError):
+        return None
+    kind = _ID_COLLECTIONS.get(type(idb).bl_rna.identifier)
+    if kind is None or path.startswith("skymodel"):
+        return None
+    return {"id": [kind, idb.name], "path": path, "attr": attr}
+
+
+def _resolve_setting(ref: dict):
+    kind, name = ref["id"]
+    idb = getattr(bpy.data, kind).get(name)
+    if idb is None:
+        return None
+    try:
+        return idb.path_resolve(ref["path"]) if ref["path"] else idb
+    except ValueError:
+        return None
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    if isinstance(a, float) or isinstance(b, float):
+        try:
+            return math.isclose(float(a), float(b), rel_tol=1e-6, abs_tol=1e-9)
+        except (TypeError, ValueError):
+            return False
+    return a == b
+
+
+def recorded_settings(scene) -> list[dict]:
+    """The settings the scene's current build changed (``[]`` when none or unreadable)."""
+    try:
+        data = json.loads(scene.get(RESTORE_KEY, "[]"))
+    except (TypeError, ValueError):
+        return []
+    return [r for r in data if isinstance(r, dict) and {"id", "path", "attr", "before", "after"} <= r.keys()]
+
+
+def restore_settings(scene, tx: Transaction | None = None) -> list[str]:
+    """Put back every setting the last build changed and that still has the build's value
+    (through ``tx`` when given, so a failing rebuild undoes it); forget the record.
+    Returns the settings put back, as ``"Scene.render.engine"`` text."""
+    done = []
+    for ref in reversed(recorded_settings(scene)):
+        owner = _resolve_setting(ref)
+        if owner is None or not hasattr(owner, ref["attr"]):
+            continue
+        if not _same(_plain(getattr(owner, ref["attr"])), ref["after"]):
+            continue  # changed by the user since the build: theirs stays
+        try:
+            if tx is not None:
+                tx.set(owner, ref["attr"], ref["before"])
+            else:
+                setattr(owner, ref["attr"], ref["before"])
+        except (TypeError, ValueError, AttributeError) as ex:
+            print(f"[skymodel] could not restore {ref['path']}.{ref['attr']}: {ex!r}")
+            continue
+        done.append(".".join(p for p in (ref["id"][1], ref["path"], ref["attr"]) if p))
+    if RESTORE_KEY in scene.keys():
+        if tx is not None:
+            tx.changed.clear()  # what was just put back is no change of this build
+            tx.set_key(scene, RESTORE_KEY, "[]")
+        else:
+            del scene[RESTORE_KEY]
+    return done
+
+
 # --------------------------------------------------------------------------- lookups
 
 
@@ -188,7 +294,9 @@ def remove_previous(scene, world, build_id: str):
 
 def remove_all(scene, world):
     """Remove every node, object and datablock of the add-on from this scene and world
-    (the Remove Sky operator); relinks the world surface the add-on replaced."""
+    (the Remove Sky operator); relinks the world surface the add-on replaced and puts back
+    the settings the build changed (:func:`restore_settings`)."""
+    restore_settings(scene)
     tree = world.node_tree if world is not None else None
     prev = world.get(PREVIOUS_SURFACE) if world is not None else None
     remove_previous(scene, world, build_id="")
@@ -329,6 +437,7 @@ def build(scene, world, settings, result, add_content) -> str:
     datablocks get their plain names."""
     tx = Transaction()
     try:
+        restore_settings(scene, tx)  # the previous build's changes: the record keeps the first values
         coll = _ensure_collection(tx, scene)
         sun = _new_sun(tx, result)
         tx.link_object(coll, sun)
@@ -336,6 +445,10 @@ def build(scene, world, settings, result, add_content) -> str:
         if settings.set_exposure:
             _view_settings(tx, scene, result.exposure)
         _write_info(tx, settings, result)
+        if tx.changed:
+            tx.set_key(scene, RESTORE_KEY, json.dumps(tx.changed))
+        elif RESTORE_KEY in scene.keys():
+            _del_key(tx, scene, RESTORE_KEY)
         _fail_hook("after_swap")
     except BaseException:
         tx.rollback()
@@ -358,6 +471,12 @@ def apply_environment(scene, world, settings, result, progress=None):
             _environment_nodes(tx, world, load_image(tx, result.image_path, settings.pack_image))
 
     return build(scene, world, settings, result, world_nodes)
+
+
+def _del_key(tx: Transaction, owner, key: str):
+    old = owner[key]
+    del owner[key]
+    tx.undo.append(lambda o=owner, k=key, v=old: o.__setitem__(k, v))
 
 
 def commit_names(tx: Transaction):

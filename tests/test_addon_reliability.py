@@ -1,0 +1,179 @@
+"""The add-on as an artist relies on it (issue 21): Remove Sky puts back everything Build
+Sky changed, the exposure keeps the colours of a low sun, the sky survives a missing cache,
+a build can be cancelled, Auto mode counts the cost. Headless (bpy module, Cycles CPU),
+tiny images."""
+
+import math
+import os
+import tempfile
+
+import pytest
+
+os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="skymodel-blender-user-"))
+os.environ.setdefault("SKYMODEL_CACHE_DIR", tempfile.mkdtemp(prefix="skymodel-cache-"))
+
+bpy = pytest.importorskip("bpy")
+import numpy as np  # noqa: E402
+
+pytestmark = pytest.mark.blender
+
+
+@pytest.fixture
+def scene(new_sky_scene):
+    from blender_addon import builder
+
+    builder.FAIL_AT = None
+    sc = new_sky_scene(image_width=64)
+    yield sc
+    builder.FAIL_AT = None
+
+
+def rna_dump(obj, depth=3, seen=None):
+    """Every readable property of ``obj`` (an RNA struct) as plain data: values, the names of
+    datablocks pointed to, and nested structs (not datablocks) down to ``depth``."""
+    seen = set() if seen is None else seen
+    out = {}
+    try:
+        key = obj.as_pointer()
+    except (AttributeError, ReferenceError):
+        return repr(obj)
+    if key in seen:
+        return "<seen>"
+    seen.add(key)
+    for prop in obj.bl_rna.properties:
+        name = prop.identifier
+        if name in ("rna_type", "depsgraph") or name.startswith("is_evaluated"):
+            continue
+        try:
+            value = getattr(obj, name)
+        except (AttributeError, RuntimeError, TypeError):
+            continue
+        if prop.type == "POINTER":
+            if value is None:
+                out[name] = None
+            elif isinstance(value, bpy.types.ID):
+                out[name] = ("ID", value.name)
+            elif depth > 0:
+                out[name] = rna_dump(value, depth - 1, seen)
+        elif prop.type == "COLLECTION":
+            items = list(value)
+            if items and isinstance(items[0], bpy.types.ID):
+                out[name] = sorted(i.name for i in items)
+            elif depth > 0 and len(items) <= 64:
+                out[name] = [rna_dump(i, depth - 1, seen) for i in items]
+            else:
+                out[name] = len(items)
+        else:
+            try:
+                out[name] = tuple(value) if hasattr(value, "__len__") and not isinstance(value, str) else value
+            except TypeError:
+                out[name] = repr(value)
+    try:
+        out["<custom>"] = sorted((k, repr(obj[k].to_dict() if hasattr(obj[k], "to_dict") else obj[k]))
+                                 for k in obj.keys())
+    except (AttributeError, TypeError):
+        pass
+    return out
+
+
+def full_snapshot(sc):
+    """Every scene, world, view-layer, camera and render property, and the datablocks."""
+    bpy.context.view_layer.update()
+    d = {"scene": rna_dump(sc, depth=4), "view_layers": [rna_dump(v, depth=3) for v in sc.view_layers],
+         "render": rna_dump(sc.render, depth=3), "cycles": rna_dump(sc.cycles, depth=2),
+         "view_settings": rna_dump(sc.view_settings, depth=3),
+         "display_settings": rna_dump(sc.display_settings, depth=2),
+         "cameras": {c.name: rna_dump(c, depth=3) for c in bpy.data.cameras},
+         "worlds": {w.name: rna_dump(w, depth=3) for w in bpy.data.worlds}}
+    for w in bpy.data.worlds:
+        nt = w.node_tree
+        d["world_nodes_" + w.name] = sorted((n.name, n.bl_idname, tuple(n.location)) for n in nt.nodes)
+        d["world_links_" + w.name] = sorted((lk.from_node.name, lk.from_socket.identifier, lk.to_node.name,
+                                             lk.to_socket.identifier) for lk in nt.links)
+    for kind in ("objects", "meshes", "lights", "images", "materials", "collections", "worlds", "cameras",
+                 "node_groups", "scenes"):
+        d[kind] = sorted(db.name for db in getattr(bpy.data, kind))
+    return d
+
+
+def diff(a, b, path=""):
+    """Paths where two snapshots differ (for a readable failure)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        out = []
+        for k in sorted(set(a) | set(b), key=str):
+            out += diff(a.get(k, "<missing>"), b.get(k, "<missing>"), f"{path}.{k}")
+        return out
+    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        out = []
+        for i, (x, y) in enumerate(zip(a, b)):
+            out += diff(x, y, f"{path}[{i}]")
+        return out
+    return [] if a == b else [f"{path}: {a!r} -> {b!r}"]
+
+
+def add_camera(sc, clip_end=100.0):
+    cd = bpy.data.cameras.new("User Camera")
+    cd.clip_end = clip_end
+    cam = bpy.data.objects.new("User Camera", cd)
+    sc.collection.objects.link(cam)
+    sc.camera = cam
+    cam.location = (0.0, -10.0, 1.7)
+    cam.rotation_euler = (math.radians(90.0), 0.0, 0.0)
+    return cam
+
+
+# ------------------------------------------------------------------ 1. Remove restores
+
+
+@pytest.mark.parametrize("mode", ["ENVIRONMENT", "VOLUMETRIC"])
+def test_remove_sky_restores_every_property_build_changed(scene, mode):
+    """Snapshot every scene, world, view-layer, camera and render property; Build; Remove;
+    the snapshot is identical (the engine, exposure, view transform, bounces and clip end
+    all differ from the build's values before it)."""
+    add_camera(scene, clip_end=100.0)
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.exposure = 0.5
+    scene.cycles.volume_bounces = 0
+    scene.cycles.max_bounces = 3
+    scene.cycles.transparent_max_bounces = 2
+    s = scene.world.skymodel
+    s.mode = mode
+    s.n_layers = 2
+    s.volume_bounces = 1
+    s.sun_elevation = math.radians(20.0)
+    before = full_snapshot(scene)
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    built = full_snapshot(scene)
+    changed = diff(before, built)
+    assert any("exposure" in c for c in changed) and any("view_transform" in c for c in changed)
+    if mode == "VOLUMETRIC":
+        assert scene.render.engine == "CYCLES" and bpy.data.cameras["User Camera"].clip_end >= 2e7
+    # a rebuild (another sun) keeps the values from before the first build
+    s.sun_elevation = math.radians(25.0)
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    assert bpy.ops.skymodel.remove_sky() == {"FINISHED"}
+    after = full_snapshot(scene)
+    problems = [d for d in diff(before, after) if ".last_build" not in d and ".last_info" not in d]
+    assert problems == []
+
+
+def test_remove_keeps_a_setting_the_user_changed_after_the_build(scene):
+    scene.view_settings.exposure = 0.25
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    assert scene.view_settings.exposure != pytest.approx(0.25)
+    scene.view_settings.exposure = 1.5  # the artist's own choice after the build
+    assert bpy.ops.skymodel.remove_sky() == {"FINISHED"}
+    assert scene.view_settings.exposure == pytest.approx(1.5)
+    assert scene.view_settings.view_transform == "AgX" or scene.view_settings.view_transform != ""
+
+
+def test_switching_modes_puts_back_what_only_the_previous_build_changed(scene):
+    scene.render.engine = "BLENDER_WORKBENCH"
+    s = scene.world.skymodel
+    s.mode, s.n_layers, s.volume_bounces = "VOLUMETRIC", 2, 1
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    assert scene.render.engine == "CYCLES"
+    s.mode = "ENVIRONMENT"
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    assert scene.render.engine == "BLENDER_WORKBENCH"
