@@ -22,9 +22,18 @@ def cumulative_trapezoid(y, x, axis=0):
 def linear_interp_matrix(src, dst) -> np.ndarray:
     """Matrix W (n_src, n_dst) of linear interpolation from nodes ``src`` (ascending) to
     points ``dst`` (clamped to the end nodes): values on ``dst`` = values on ``src`` @ W.
-    A single node is copied everywhere."""
+    A single node is copied everywhere.
+
+    ``src`` must be strictly ascending and finite (``ValueError`` otherwise): a descending
+    or unsorted grid would give a wrong matrix without a word, which is how unsorted
+    wavelengths once gave 40 % wrong radiance."""
     src = np.asarray(src, float)
     dst = np.asarray(dst, float)
+    if src.ndim != 1 or src.size == 0 or not np.all(np.isfinite(src)) or np.any(np.diff(src) <= 0):
+        raise ValueError("linear_interp_matrix: the nodes must be a non-empty, finite, strictly ascending 1-D "
+                         f"array (got {src.size} nodes)")
+    if not np.all(np.isfinite(dst)):
+        raise ValueError("linear_interp_matrix: the points must be finite")
     w = np.zeros((src.size, dst.size))
     if src.size == 1:
         w[0] = 1.0

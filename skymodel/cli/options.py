@@ -11,6 +11,8 @@ here but checked where they are used (``Atmosphere``, :func:`skymodel.scene.plac
 from __future__ import annotations
 
 import argparse
+import math
+import sys
 
 from skymodel import scene
 
@@ -24,6 +26,38 @@ def floats(text: str) -> list[float]:
         return [float(v) for v in text.split(",") if v.strip()]
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected comma-separated numbers, got {text!r}") from None
+
+
+def number_list(parameter: str, values, *, check: str | None = None) -> list[float]:
+    """The numbers of a comma-separated option (text, or a list already parsed), each one
+    finite and, with ``check``, inside the registry's range of parameter ``check``.
+
+    Raises :class:`~skymodel.errors.SkymodelInputError` naming ``parameter`` for an empty
+    list, text that is not a number, NaN or infinity, before any work starts."""
+    from skymodel.errors import SkymodelInputError
+
+    entry = scene.parameter(check) if check else None
+    allowed = ("comma-separated numbers" + (f" in {entry.range_text()}" if entry else ""))
+    items = str(values).split(",") if isinstance(values, str) else list(values)
+    out = []
+    for item in items:
+        if isinstance(item, str) and not item.strip():
+            continue
+        try:
+            v = float(item)
+        except (TypeError, ValueError):
+            raise SkymodelInputError(parameter, values, allowed) from None
+        if not math.isfinite(v):
+            raise SkymodelInputError(parameter, values, allowed)
+        if entry is not None:
+            try:
+                entry.check(v)
+            except SkymodelInputError:
+                raise SkymodelInputError(parameter, values, allowed) from None
+        out.append(v)
+    if not out:
+        raise SkymodelInputError(parameter, values, "at least one number: " + allowed)
+    return out
 
 
 def size(text: str):

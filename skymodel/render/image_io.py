@@ -18,8 +18,10 @@
   every argument first.
 
 Every writer is atomic: the data go to a temporary file in the destination folder which
-is renamed over the destination only once complete, so a failure leaves no partial
-file (and no temporary file) behind. Bad arguments raise
+is renamed over the destination only once complete, so a failure (a full disk, an
+interrupt) leaves no partial file (and no temporary file) behind, and the previous file
+of that name, if any, stays whole. :func:`check_output_path` creates and removes a probe
+file, so a read-only folder is found before a long render. Bad arguments raise
 :class:`~skymodel.errors.SkymodelInputError` naming the parameter, before anything is
 created.
 """
@@ -61,7 +63,22 @@ def _check_output_path(parameter, path, extensions):
         raise SkymodelInputError(parameter, p, f"a file in an existing folder ({folder!r} does not exist)")
     if os.path.isdir(p):
         raise SkymodelInputError(parameter, p, "a file path, not a folder")
+    _check_writable(parameter, p, folder)
     return p
+
+
+def _check_writable(parameter, path, folder):
+    """Create and remove a probe file in ``folder`` (what the atomic writer will do), so a
+    read-only folder or file system is reported before a long render, naming ``parameter``.
+    A probe, not ``os.access``: root passes ``os.access`` on a read-only mount."""
+    probe = os.path.join(folder, f".{os.path.basename(path)}.{secrets.token_hex(6)}.probe")
+    try:
+        fd = os.open(probe, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except OSError as e:
+        raise SkymodelInputError(parameter, path, f"a file in a writable folder ({folder!r}: "
+                                                  f"{e.strerror or e})") from None
+    os.close(fd)
+    _remove_quietly(probe)
 
 
 #: Public name of the path check (callers validate output paths before a long render).
@@ -514,6 +531,11 @@ def _validate_spectral(radiance, wavelengths_nm, directions, valid):
     if bad.any():
         raise SkymodelInputError("radiance", f"{int(bad.sum())} pixels with non-finite values",
                                  "finite radiance in every valid pixel")
+    negative = v & np.any(rad < 0, axis=-1)
+    if negative.any():
+        raise SkymodelInputError("radiance", f"{int(negative.sum())} pixels with negative values "
+                                             f"(lowest {float(np.min(rad[negative])):.3g})",
+                                 "non-negative radiance in every valid pixel")
     if rad.dtype.kind != "f":
         rad = rad.astype(float)
     rad = np.where(v[..., None], rad, 0.0).astype(rad.dtype, copy=False)

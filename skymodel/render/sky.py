@@ -77,16 +77,40 @@ def add_sun_disc(radiance, directions, valid, solid_angles, sun_dir, irradiance,
     return inside
 
 
+def check_render_arguments(profile, camera, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, quality=None):
+    """Validate the arguments of a render before any work: the profile and camera types,
+    the sun's elevation and azimuth and the observer's altitude against the registry
+    (:mod:`skymodel.scene`: ``sun_elevation`` -12..90 deg, ``sun_azimuth``, finite) and the
+    quality. Returns ``(sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings)``.
+    Raises :class:`~skymodel.errors.SkymodelInputError` naming the parameter."""
+    from skymodel.errors import SkymodelInputError
+    from skymodel.optics.profile import LayeredProfile, OpticalProfile
+
+    if not isinstance(profile, (OpticalProfile, LayeredProfile)):
+        raise SkymodelInputError("profile", type(profile).__name__,
+                                 "an OpticalProfile or LayeredProfile (Atmosphere(...).optical_profile())")
+    if not isinstance(camera, Camera):
+        raise SkymodelInputError("camera", type(camera).__name__, "a Camera from skymodel.render.cameras.make_camera")
+    el = scene.check("sun_elevation", sun_elevation_deg)
+    az = scene.check("sun_azimuth", sun_azimuth_deg)
+    alt = scene.check("observer_altitude", observer_altitude_m)
+    return el, az, alt, quality_settings(quality)
+
+
 def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_deg: float = 180.0,
                observer_altitude_m: float = 0.0, quality=None, include_sun: bool = True,
                progress=None) -> SkyImage:
     """Render ``camera``'s pixels for the atmosphere ``profile`` (smooth or layered).
 
-    ``sun_elevation_deg`` / ``sun_azimuth_deg`` [deg], ``observer_altitude_m`` [m];
-    ``quality``: a preset name, a MarchSettings, or None for the default quality
-    (:mod:`skymodel.scene`, ``quality``)."""
+    ``sun_elevation_deg`` [deg] in -12..90 (below -12 is night: refused, not clamped),
+    ``sun_azimuth_deg`` [deg], ``observer_altitude_m`` [m]; ``quality``: a preset name, a
+    MarchSettings, or None for the default quality (:mod:`skymodel.scene`, ``quality``).
+    Every argument is checked before the march (:func:`check_render_arguments`)."""
+    settings = check_render_arguments(profile, camera, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m,
+                                      quality)
+    sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings = settings
     t0 = time.perf_counter()
-    marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, quality_settings(quality),
+    marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
                          progress=progress)
     dirs, valid = camera.directions()
     radiance, res_info, _ = _march_pixels(marcher, dirs, valid, None, profile.wavelengths_nm.size, None)
@@ -115,8 +139,11 @@ def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce
 
     Returns ``(image (H, W, n_channels), sun_irradiance (n_wl,), info)``; invalid pixels are 0.
     """
+    settings = check_render_arguments(profile, camera, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m,
+                                      quality)
+    sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings = settings
     t0 = time.perf_counter()
-    marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, quality_settings(quality),
+    marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
                          progress=progress)
     dirs, valid = camera.directions()
     out, info, bands = _march_pixels(marcher, dirs, valid, reduce, n_channels, band_pixels)
