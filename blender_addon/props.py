@@ -103,6 +103,19 @@ REGISTRY_PROPERTIES = {
 }
 
 
+def angle_degrees(radians: float, name: str) -> float:
+    """Degrees of an angle property (stored as float32 radians) for the core: a value
+    within float32 rounding of the registry's bound of ``name`` is that bound, so the
+    documented bounds (latitude 90, sun elevation -12) pass the core's check instead of
+    arriving as 90.0000025 and being refused."""
+    deg = math.degrees(radians)
+    p = scene.parameter(name)
+    for bound in (p.minimum, p.maximum):
+        if bound is not None and abs(deg - bound) <= 1e-6 * max(1.0, abs(bound)):
+            return float(bound)
+    return deg
+
+
 def registry_property(prop_name: str):
     """The bpy property of ``prop_name`` (a key of :data:`REGISTRY_PROPERTIES`), built now
     from the registry entry: default (or the entry's ``suggested`` value for a field that
@@ -244,12 +257,12 @@ class SkymodelSettings(bpy.types.PropertyGroup):
         aer = self.aerosol.strip()
         return SkyParams(
             location=self.location.strip() if preset else None,
-            latitude_deg=None if preset else math.degrees(self.latitude),
-            longitude_deg=None if preset else math.degrees(self.longitude),
+            latitude_deg=None if preset else angle_degrees(self.latitude, "latitude"),
+            longitude_deg=None if preset else angle_degrees(self.longitude, "longitude"),
             month=int(self.month),
             time_utc=(self.year, self.month, self.day, self.hour, self.minute) if self.sun_source == "TIME" else None,
-            sun_elevation_deg=math.degrees(self.sun_elevation),
-            sun_azimuth_deg=math.degrees(self.sun_azimuth),
+            sun_elevation_deg=angle_degrees(self.sun_elevation, "sun_elevation"),
+            sun_azimuth_deg=angle_degrees(self.sun_azimuth, "sun_azimuth"),
             aerosol=None if aer.lower() in ("", "location") else aer,
             aod550=float(self.aod550) if self.aerosol_amount == "AOD" else None,
             turbidity=float(self.turbidity) if self.aerosol_amount == "TURBIDITY" else None,

@@ -16,7 +16,9 @@ the sky (Build Sky with the given settings) and an equirectangular panoramic cam
 ``--camera-height`` metres above the ground whose image centre looks horizontally toward
 ``--center-azimuth`` (default: the sun's azimuth). The PNG goes through the scene's view
 transform (AgX and the add-on's exposure); ``--exr`` also writes the scene-linear image.
-Exit status 0 on success, 2 for bad input (the message names the parameter), 1 otherwise.
+Exit status 0 on success, 2 for bad input (the message names the option and the value as
+typed, checked before Blender does any work: out of range is refused, never clamped; the
+documented bounds such as ``--lat 90`` are accepted), 1 otherwise.
 """
 
 from __future__ import annotations
@@ -40,8 +42,9 @@ def _size(text):
         w, h = (int(v) for v in str(text).lower().split("x"))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT, got {text!r}") from None
-    if not (1 <= w <= 16384 and 1 <= h <= 16384):
-        raise argparse.ArgumentTypeError(f"size out of range: {text!r}")
+    hi = scene.parameter("image_width").maximum
+    if not (1 <= w <= hi and 1 <= h <= hi):
+        raise argparse.ArgumentTypeError(f"size out of range: {text!r} (each side 1..{hi:g})")
     return w, h
 
 
@@ -74,9 +77,67 @@ def parse_args(argv=None):
     g.add_argument("--size", type=_size, default=(256, 128), help="WIDTHxHEIGHT of the render")
     g.add_argument("--camera-height", type=float, default=1.7, help="metres above the ground")
     g.add_argument("--center-azimuth", type=float, default=None, help="image centre azimuth (default: the sun's)")
-    g.add_argument("--out", required=True, help="PNG file")
+    g.add_argument("--out", required=True, help="PNG file (.png)")
     g.add_argument("--exr", default=None, help="also write the scene-linear image (OpenEXR)")
     return ap.parse_args(argv)
+
+
+#: The headless options checked against the registry (flag -> attribute, registry name);
+#: out of range is an error naming the flag and the value as typed, never a clamp.
+_REGISTRY_OPTIONS = (
+    ("--lat", "lat", "latitude"), ("--lon", "lon", "longitude"), ("--month", "month", "month"),
+    ("--aod550", "aod550", "aod550"), ("--turbidity", "turbidity", "turbidity"),
+    ("--ozone-du", "ozone_du", "ozone_du"), ("--albedo", "albedo", "albedo"),
+    ("--sun-elevation", "sun_elevation", "sun_elevation"), ("--sun-azimuth", "sun_azimuth", "sun_azimuth"),
+    ("--quality", "quality", "quality"), ("--image-width", "image_width", "environment_width"),
+    ("--layers", "layers", "volume_layers"), ("--camera-height", "camera_height", "observer_altitude"),
+    ("--center-azimuth", "center_azimuth", "sun_azimuth"),
+)
+
+#: Bounds of options that are the renderer's, not the sky's (Blender's own limits).
+VOLUME_BOUNCES = (0, 64)
+SAMPLES = (1, 1 << 16)
+OUTPUT_EXTENSIONS = {"--out": (".png",), "--exr": (".exr",)}
+
+
+def check_options(o) -> None:
+    """Check every parsed option before Blender does any work: each sky value against
+    :mod:`skymodel.scene` (the bounds themselves pass: ``--lat 90`` is allowed), the
+    renderer's counts, the date's year, and the output paths (extension, existing and
+    writable folder). Raises :class:`SkymodelInputError` naming the flag and the value as
+    typed (exit status 2 from :func:`main`); nothing is clamped."""
+    for flag, attr, name in _REGISTRY_OPTIONS:
+        value = getattr(o, attr)
+        if value is None:
+            continue
+        try:
+            scene.check(name, value)
+        except SkymodelInputError as e:
+            raise SkymodelInputError(flag, value, e.allowed) from None
+    if o.aod550 is not None and o.turbidity is not None:
+        raise SkymodelInputError("--turbidity", o.turbidity, "either --aod550 or --turbidity, not both")
+    for flag, value, (lo, hi) in (("--volume-bounces", o.volume_bounces, VOLUME_BOUNCES),
+                                  ("--samples", o.samples, SAMPLES)):
+        if not (lo <= value <= hi):
+            raise SkymodelInputError(flag, value, f"an integer in {lo}..{hi}")
+    if o.time:
+        import datetime as dt
+
+        try:
+            t = dt.datetime.fromisoformat(o.time.rstrip("Zz"))
+        except ValueError:
+            raise SkymodelInputError("--time", o.time, "an ISO date-time such as 2026-06-21T19:30") from None
+        try:
+            scene.check("year", t.year)
+        except SkymodelInputError as e:
+            raise SkymodelInputError("--time", o.time, f"a date with the year {e.allowed}") from None
+        if o.sun_elevation is not None or o.sun_azimuth is not None:
+            raise SkymodelInputError("--time", o.time, "either --time or --sun-elevation/--sun-azimuth, not both")
+    from skymodel.render.image_io import check_output_path
+
+    for flag, path in (("--out", o.out), ("--exr", o.exr)):
+        if path is not None:
+            check_output_path(flag, path, OUTPUT_EXTENSIONS[flag])
 
 
 def _ensure_registered():
@@ -199,9 +260,8 @@ def main(argv=None) -> int:
         return int(ex.code or 0)
     t0 = time.perf_counter()
     try:
+        check_options(o)
         out = os.path.abspath(o.out)
-        if not os.path.isdir(os.path.dirname(out)):
-            raise SkymodelInputError("out", o.out, "a path in an existing folder")
         scene = build_scene(o)
         if o.exr:
             _render(scene, os.path.abspath(o.exr), "OPEN_EXR")
