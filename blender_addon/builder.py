@@ -410,6 +410,15 @@ def _view_settings(tx: Transaction, scene, exposure: float):
     tx.set(vs, "exposure", float(exposure))
 
 
+def film_exposure(settings, result) -> float:
+    """The exposure Build Sky sets: the rule chosen in the panel (``exposure_rule``: the
+    core's display exposure, or the incident-light rule alone) plus the user's offset."""
+    base = float(result.exposure)
+    if getattr(settings, "exposure_rule", "SKY") == "INCIDENT":
+        base = float(result.info.get("exposure_incident", base))
+    return base + float(getattr(settings, "exposure_offset", 0.0))
+
+
 def load_image(tx: Transaction, path: str, pack: bool):
     img = bpy.data.images.load(path, check_existing=False)
     tx.adopt("images", img)
@@ -443,7 +452,7 @@ def build(scene, world, settings, result, add_content) -> str:
         tx.link_object(coll, sun)
         add_content(tx, coll)
         if settings.set_exposure:
-            _view_settings(tx, scene, result.exposure)
+            _view_settings(tx, scene, film_exposure(settings, result))
         _write_info(tx, settings, result)
         if tx.changed:
             tx.set_key(scene, RESTORE_KEY, json.dumps(tx.changed))
@@ -501,7 +510,7 @@ def _write_info(tx: Transaction, settings, result):
     info = result.info
     lines = [
         f"{result.mode.title()}: sun {result.sun_elevation_deg:.2f}° el, {result.sun_azimuth_deg:.2f}° az",
-        f"Sun {result.sun_strength:.3g} W/m² (Y), exposure {result.exposure:+.2f} EV",
+        f"Sun {result.sun_strength:.3g} W/m² (Y), exposure {film_exposure(settings, result):+.2f} EV",
     ]
     if "total_s" in info:
         lines.append(f"Built in {info['total_s']:.1f} s" + (" (cached image)" if result.cache_hit else ""))

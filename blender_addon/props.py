@@ -247,6 +247,17 @@ class SkymodelSettings(bpy.types.PropertyGroup):
                              default=False)
     set_exposure: BoolProperty(name="Set Exposure", description="Set the view transform (AgX) and the "
                                "exposure from the sky's illuminance", default=True)
+    exposure_rule: EnumProperty(
+        name="Exposure Rule", description="How Build Sky sets the film exposure",
+        items=[("SKY", "Keep Sky Colours", "The incident-light rule in daylight; at a low sun and in twilight "
+                "the sky meter (a key that falls with the light, Krawczyk et al. 2005) keeps the sky's colours "
+                "instead of washing them to white (docs/blender.md)"),
+               ("INCIDENT", "White Plate at 1", "Incident-light rule only: a white plate lit by sun and sky "
+                "displays at 1, at noon and at dusk alike (dusk skies wash out)")],
+        default="SKY")
+    exposure_offset: FloatProperty(
+        name="Exposure Offset", description="Stops added to the exposure Build Sky sets (your own look on top)",
+        min=-16.0, max=16.0, soft_min=-5.0, soft_max=5.0, default=0.0, precision=2, unit='NONE')
     # ---- written by the last successful build
     last_build: StringProperty(name="Last Build", default="")
     last_info: StringProperty(name="Info", default="")

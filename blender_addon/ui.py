@@ -69,6 +69,9 @@ def draw_settings(layout, context):
             col.prop(s, "n_layers")
         col.prop(s, "volume_bounces")
     col.prop(s, "set_exposure")
+    if s.set_exposure:
+        col.prop(s, "exposure_rule")
+        col.prop(s, "exposure_offset")
     if s.mode == "AUTO":
         draw_plan(layout, context, s)
 

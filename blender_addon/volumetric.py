@@ -72,12 +72,11 @@ from skymodel.colorimetry import cmf_weights, xyz_to_rgb_matrix
 from skymodel.errors import SkymodelInputError
 from skymodel.optics.phase_fit import fit_phase, hg
 from skymodel.optics.profile import LayeredProfile
-from skymodel.render.environment import environment_camera
+from skymodel.render.environment import display_exposure, environment_camera
 from skymodel.render.sky import render_sky
 from skymodel.wavelengths import default_wavelengths
 
-from .physics import (LUMA_709, SkyResult, exposure_from_illuminance, fit_into_gamut, horizontal_illuminance,
-                      spectrum_rgb, sun_lamp)
+from .physics import LUMA_709, SkyResult, fit_into_gamut, spectrum_rgb, sun_lamp
 
 #: Spectral grid of the projection (nm).
 WAVELENGTH_STEP_NM = 10.0
@@ -370,10 +369,11 @@ def compute(sky, cache_dir=None, progress=None) -> SkyResult:
     img = render_sky(prof, cam, sky.sun_elevation_deg, sky.sun_azimuth_deg, 0.0, "preview", include_sun=False)
     rgb = fit_into_gamut(spectrum_rgb(img.radiance, wl))
     s_obs, _ = sun_lamp(img.sun_irradiance, wl)
-    e_h = horizontal_illuminance(rgb, cam, s_obs, sky.sun_elevation_deg)
+    meter = display_exposure(rgb, cam, s_obs, sky.sun_elevation_deg)
+    e_h = meter["horizontal_illuminance_Y"]
     res = SkyResult(mode="VOLUMETRIC", sun_elevation_deg=sky.sun_elevation_deg,
                     sun_azimuth_deg=sky.sun_azimuth_deg, sun_strength=strength, sun_colour=colour,
-                    sun_angle_deg=sky.sun_angular_diameter_deg(), exposure=exposure_from_illuminance(e_h))
+                    sun_angle_deg=sky.sun_angular_diameter_deg(), exposure=meter["exposure"])
     res.layers = vol
     res.ground_albedo_rgb = tuple(vol["ground_albedo_rgb"])
     h = rgb.shape[0]
@@ -381,6 +381,7 @@ def compute(sky, cache_dir=None, progress=None) -> SkyResult:
     res.info = {"compute_s": time.perf_counter() - t0, "volumes": len(vol["volumes"]),
                 "zenith_Y_core": float(luma[0].mean()), "horizon_Y_core": float(luma[h // 2 - 1].mean()),
                 "sun_observer_Y": s_obs, "horizontal_illuminance_Y": e_h, "phases": vol["phases"],
+                "exposure_incident": meter["exposure_incident"], "exposure_sky": meter["exposure_sky"],
                 "sag": sag_report(prof.planet_radius_m)}
     return res
 

@@ -177,3 +177,71 @@ def test_switching_modes_puts_back_what_only_the_previous_build_changed(scene):
     s.mode = "ENVIRONMENT"
     assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
     assert scene.render.engine == "BLENDER_WORKBENCH"
+
+
+# ------------------------------------------------------------------ 2. exposure at a low sun
+
+
+def _sky_display(elevation, tmp_path, exposure_rule="SKY", offset=0.0):
+    """Environment mode, headless, rural, June, a 256x128 panorama centred on the sun
+    through AgX to an 8-bit PNG: (mean largest channel, mean HSV saturation) of the sky
+    above the horizon, and the exposure set."""
+    from blender_addon import render
+
+    o = render.parse_args(["--location", "rural", "--month", "6", "--sun-elevation", str(elevation),
+                           "--mode", "environment", "--samples", "4", "--size", "256x128", "--image-width", "256",
+                           "--out", str(tmp_path / "x.png")])
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = render.build_scene(o, progress=None)
+    if exposure_rule != "SKY" or offset:
+        s = sc.world.skymodel
+        s.exposure_rule, s.exposure_offset = exposure_rule, offset
+        from blender_addon import ops
+
+        ops.build(_Ctx(sc))
+    path = str(tmp_path / f"sky_{elevation}_{exposure_rule}.png")
+    sc.render.image_settings.color_depth = "8"
+    render._render(sc, path, "PNG")
+    img = bpy.data.images.load(path, check_existing=False)
+    w, h = img.size
+    px = np.empty(w * h * 4, np.float32)
+    img.pixels.foreach_get(px)
+    bpy.data.images.remove(img)
+    sky = px.reshape(h, w, 4)[::-1, :, :3][: h // 2]
+    mx, mn = sky.max(axis=-1), sky.min(axis=-1)
+    sat = np.where(mx > 0, (mx - mn) / np.maximum(mx, 1e-12), 0.0)
+    return float(mx.mean()), float(sat.mean()), sc.view_settings.exposure
+
+
+class _Ctx:
+    def __init__(self, scene):
+        self.scene, self.window_manager = scene, None
+
+
+def test_exposure_keeps_sunset_and_twilight_colours(addon, tmp_path):
+    """Sun 0 and -4 degrees display no brighter than sun 30 (mean largest channel) and keep
+    their colour (mean saturation >= 0.22); the incident rule alone washes them out."""
+    ref_bright, ref_sat, ref_ev = _sky_display(30.0, tmp_path)
+    for el in (0.0, -4.0):
+        bright, sat, _ = _sky_display(el, tmp_path)
+        assert bright <= ref_bright, (el, bright, ref_bright)
+        assert sat >= 0.22, (el, sat)
+    washed, washed_sat, _ = _sky_display(0.0, tmp_path, exposure_rule="INCIDENT")
+    assert washed > ref_bright and washed_sat < 0.22  # what the issue measured (0.80, 0.11)
+    # midday: the incident-light rule's exposure, within 0.3 EV
+    _, _, incident_ev = _sky_display(30.0, tmp_path, exposure_rule="INCIDENT")
+    assert abs(ref_ev - incident_ev) <= 0.3
+
+
+def test_exposure_offset_and_rule_add_to_the_build(scene):
+    s = scene.world.skymodel
+    s.sun_elevation = math.radians(-2.0)
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    base = scene.view_settings.exposure
+    s.exposure_offset = 1.5
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    assert scene.view_settings.exposure == pytest.approx(base + 1.5, abs=1e-5)
+    s.exposure_offset = 0.0
+    s.exposure_rule = "INCIDENT"
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    assert scene.view_settings.exposure > base + 2.0  # the incident rule is 2-3 EV brighter at -2 degrees

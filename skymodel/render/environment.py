@@ -22,12 +22,26 @@ Orientation
     increasing to the right (:func:`environment_camera`): where Blender's Environment
     Texture puts the image centre, so no texture rotation is needed there.
 
-Exposure (the "incident-light meter" rule)
-    ``exposure = log2(pi / E_h)`` where ``E_h`` is the horizontal illuminance at the
-    observer in the scale above (direct sun ``E_Y sin(elevation)`` plus the sky's diffuse
-    ``sum(Y cos(zenith) dOmega)`` over the upper hemisphere, sun disc excluded). A white
-    horizontal Lambertian surface then displays at scene value 1.0 and an 18 % grey card at
-    0.18, at noon and at dusk alike.
+Exposure (incident light, capped by a key on the sky)
+    Two meters, the darker wins (:func:`display_exposure`):
+
+    * the incident-light rule ``log2(pi / E_h)``, ``E_h`` the horizontal illuminance at the
+      observer in the scale above (direct sun ``E_Y sin(elevation)`` plus the sky's diffuse
+      ``sum(Y cos(zenith) dOmega)`` over the upper hemisphere, sun disc excluded): a white
+      horizontal Lambertian surface displays at scene value 1.0, an 18 % grey card at 0.18.
+      Right in daylight; at a low sun the sky becomes as bright as the ground it lights
+      (pi L_sky / E_h goes from 0.2 at sun 30 degrees to 1.4-2 at and below the horizon),
+      so a white plate at 1.0 washes the sunset and twilight sky to near white;
+    * a reflected-light meter on the sky with a key that falls with the light level: the
+      sky's log-average luminance ``L_sky`` (solid-angle weighted, above the horizon) is
+      shown at ``SKY_KEY_SCALE * key(L_sky)``, with the key of Krawczyk, Myszkowski &
+      Seidel (2005), ``key = 1.03 - 2 / (2 + log10(L + 1))``, L in cd m^-2 (their automatic
+      key for the log-average luminance: a bright scene is shown brighter than a dim one,
+      as a dusk photograph is darker than a noon one). :data:`SKY_KEY_SCALE` puts the
+      clear sky at sun 30 degrees (rural, June) where the incident rule puts it, so
+      daylight keeps the incident rule's look and only the low sun is darkened.
+
+    A user offset is added by the renderer (the Blender add-on's Exposure Offset).
 
 Cache
     :func:`render_environment` writes ``sky-<key>.exr`` and ``sky-<key>.json`` (the lamp and
@@ -58,8 +72,8 @@ from skymodel.render.cameras import make_camera
 from skymodel.render.quality import QUALITIES
 from skymodel.wavelengths import default_wavelengths
 
-#: Bump when the meaning of a cached file changes.
-CACHE_FORMAT = 1
+#: Bump when the meaning of a cached file changes (2: the exposure of display_exposure).
+CACHE_FORMAT = 2
 #: Image width by quality (height = width / 2): the quality registry's.
 IMAGE_WIDTH = {name: q.environment_width_px for name, q in QUALITIES.items()}
 #: Wavelength step (nm) of the spectral render by quality: the quality registry's.
@@ -124,6 +138,62 @@ def exposure_from_illuminance(e_h: float) -> float:
     if not e_h > 0.0 or not math.isfinite(e_h):
         return 0.0
     return float(min(max(math.log2(math.pi / e_h), -32.0), 32.0))
+
+
+#: One unit of the colour scale in cd m^-2 (Y = 1 <=> 683 cd m^-2).
+CANDELA_PER_UNIT = 683.0
+#: Scene value at which the sky's log-average luminance is shown, per unit of key
+#: (:func:`sky_key`). The clear rural June sky at sun 30 degrees (log-average 4.55 units,
+#: key 0.666) is shown at 0.172 by the incident rule and at 0.28 * 0.666 = 0.186 by the sky
+#: meter, so the incident rule still sets the daylight exposure there (and above); the sky
+#: meter takes over between sun 30 and 15 degrees and shows the sky at sun 0 degrees at
+#: 0.28 * 0.59 = 0.166, no brighter than at 30 (measured figures in docs/blender.md).
+SKY_KEY_SCALE = 0.28
+
+
+def sky_key(log_average_y: float) -> float:
+    """Key value of Krawczyk, Myszkowski & Seidel (2005) for a log-average luminance in the
+    colour scale's units: ``1.03 - 2 / (2 + log10(683 L + 1))`` (0.16 at 1 cd m^-2, 0.67 at
+    3000 cd m^-2), floored at 0.02.
+
+    References
+    ----------
+    G. Krawczyk, K. Myszkowski, H.-P. Seidel, "Lightness perception in tone reproduction
+    for high dynamic range images", Computer Graphics Forum 24(3), 2005, eq. 11.
+    """
+    lum = max(float(log_average_y), 0.0) * CANDELA_PER_UNIT
+    return max(1.03 - 2.0 / (2.0 + math.log10(lum + 1.0)), 0.02)
+
+
+def sky_log_average(rgb_image, camera) -> float:
+    """Solid-angle weighted log-average luminance of the sky above the horizon (units of the
+    colour scale; 0 when there is none)."""
+    dirs, valid = camera.directions()
+    omega = camera.pixel_solid_angles()
+    y = np.asarray(rgb_image, float) @ LUMA_709
+    up = valid & (dirs[..., 2] > 0) & (y > 0)
+    if not np.any(up):
+        return 0.0
+    w = omega[up]
+    return float(np.exp(np.sum(w * np.log(y[up])) / np.sum(w)))
+
+
+def exposure_from_sky(log_average_y: float) -> float:
+    """Exposure (stops) of the sky meter: shows ``log_average_y`` at ``SKY_KEY_SCALE * key``."""
+    if not log_average_y > 0.0 or not math.isfinite(log_average_y):
+        return 32.0
+    return float(min(max(math.log2(SKY_KEY_SCALE * sky_key(log_average_y) / log_average_y), -32.0), 32.0))
+
+
+def display_exposure(rgb_image, camera, sun_strength: float, sun_elevation_deg: float) -> dict:
+    """The exposure of the module doc: the darker of the incident-light rule and the sky
+    meter. Returns ``{"exposure", "exposure_incident", "exposure_sky",
+    "horizontal_illuminance_Y", "sky_log_average_Y"}`` (stops and colour-scale units)."""
+    e_h = horizontal_illuminance(rgb_image, camera, sun_strength, sun_elevation_deg)
+    l_sky = sky_log_average(rgb_image, camera)
+    incident, sky = exposure_from_illuminance(e_h), exposure_from_sky(l_sky)
+    return {"exposure": min(incident, sky), "exposure_incident": incident, "exposure_sky": sky,
+            "horizontal_illuminance_Y": e_h, "sky_log_average_Y": l_sky}
 
 
 # --------------------------------------------------------------------------- inputs
@@ -341,7 +411,7 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
         radiance, sun_irradiance = model_radiance(cam, wl, include_sun)
         rgb = reduce_to_rgb(radiance, wl)
     strength, colour = sun_lamp(sun_irradiance, wl)
-    e_h = horizontal_illuminance(rgb, cam, strength, sun_elevation_deg)
+    meter = display_exposure(rgb, cam, strength, sun_elevation_deg)
     if not np.all(np.isfinite(rgb)):
         raise FloatingPointError("sky image: non-finite values")
     luma = rgb @ LUMA_709
@@ -349,12 +419,12 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
     env = EnvironmentMap(image_path=str(exr), cache_hit=False, sun_elevation_deg=sun_elevation_deg,
                          sun_azimuth_deg=sun_azimuth_deg, sun_strength=strength, sun_colour=list(colour),
                          sun_angle_deg=sun_angular_diameter_deg(earth_sun_distance_au),
-                         exposure=exposure_from_illuminance(e_h))
+                         exposure=meter["exposure"])
     info = {
         "render_s": round(time.perf_counter() - t0, 3),
         "size": f"{cam.width}x{cam.height}",
         "wavelengths": int(wl.size),
-        "horizontal_illuminance_Y": e_h,
+        **{k: v for k, v in meter.items() if k != "exposure"},
         "zenith_Y": float(luma[0].mean()),
         "horizon_Y": float(luma[h // 2 - 1].mean()),
         "atmosphere": {k: v for k, v in prof.metadata.items() if isinstance(v, (str, int, float, type(None)))},
