@@ -228,9 +228,7 @@ def _hard_coded(path: Path) -> list[str]:
 
 
 #: Modules that still type the numbers, each with why (strict xfail: remove the entry when fixed).
-_PENDING = {
-    "skymodel/planner/scene.py": "the planner is being restructured by another engineer (issue #18)",
-}
+_PENDING: dict[str, str] = {}
 
 
 def _sources():

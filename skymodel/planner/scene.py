@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from skymodel.errors import SkymodelInputError, check_choice, check_range
+from skymodel.scene import parameter
 
 #: The image metrics a tolerance may be given in (:class:`SceneDescription`).
 TOLERANCE_KINDS = ("de2000", "radiance_rel")
@@ -99,8 +100,9 @@ class SceneDescription:
         if not cams:
             raise SkymodelInputError("cameras", self.cameras, "at least one camera")
         set_("cameras", cams)
-        set_("sun_elevation_deg", check_range("sun_elevation_deg", self.sun_elevation_deg, -12.0, 90.0,
-                                              "degrees (below -12 the sky is night)"))
+        sun = parameter("sun_elevation")
+        set_("sun_elevation_deg", check_range("sun_elevation_deg", self.sun_elevation_deg, sun.minimum, sun.maximum,
+                                              "degrees"))
         set_("farthest_object_m", check_range("farthest_object_m", self.farthest_object_m, 0.0, 1_000_000.0, "metres"))
         set_("sky_visible", bool(self.sky_visible))
         for name in ("image_width", "image_height"):
