@@ -30,7 +30,7 @@ from dataclasses import replace
 import numpy as np
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path[:0] = [_HERE, os.path.join(_HERE, "..", "tests"), os.path.join(_HERE, "..")]
+sys.path[:0] = [_HERE, os.path.join(_HERE, "..")]
 
 from common import command_line, git_revision, machine, update_section  # noqa: E402
 
@@ -142,7 +142,7 @@ def run_scene(args):
 def twilight_check(n_paths, seed=7):
     """Marcher (linear, geometric and cubic-in-log sun interpolation, 24 and 192 sun
     nodes) against one MC run, synthetic AOD 0.2 sky, sun at -4 degrees."""
-    from synthetic import synthetic_profile
+    from skymodel.validation.synthetic import synthetic_profile
 
     from skymodel.render import multiple_scattering as msm
 

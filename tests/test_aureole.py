@@ -66,7 +66,7 @@ def test_desert_aureole_at_low_sun_agrees_with_monte_carlo():
     """Desert dust (f ~ 0.25), sun at 5 degrees, sky 4 and 7 degrees above the sun:
     without the aureole the marcher is 12-15 % below the Monte Carlo tracer (the peak
     light scattered twice or more is missing); with it, within the MC noise and 3 %.
-    Measured with 300k paths in docs/accuracy.md."""
+    Measured with 300k paths in notebooks/sunward_horizon."""
     from dataclasses import replace
 
     from skymodel import Atmosphere
@@ -91,7 +91,7 @@ def test_sunward_horizon_at_sunset_needs_a_narrow_cone():
     small-angle aureole, which misses about 10 % 2 degrees from the sun (its sun path is
     the straight grazing ray; light turned upward by a few degrees crosses far less air).
     A 3-degree cone with azimuth nodes 5.6 degrees apart carries that light in the
-    solver's field and agrees with the Monte Carlo tracer (docs/accuracy.md, "The
+    solver's field and agrees with the Monte Carlo tracer (notebooks/sunward_horizon, "The
     sunward horizon at sunset")."""
     from dataclasses import replace
 

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from synthetic import synthetic_profile
+from skymodel.validation.synthetic import synthetic_profile
 
 from skymodel.optics import mie
 from skymodel.optics.aerosols import aerosol_types

@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from synthetic import synthetic_profile
+from skymodel.validation.synthetic import synthetic_profile
 
 from skymodel.render.marcher import MarchSettings, SkyMarcher, profile_at_wavelengths
 from skymodel.render.rays import direction_from_angles

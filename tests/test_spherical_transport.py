@@ -5,7 +5,7 @@ used the true spherical geometry."""
 
 import numpy as np
 import pytest
-from synthetic import synthetic_profile
+from skymodel.validation.synthetic import synthetic_profile
 
 from skymodel.render.marcher import MarchSettings, SkyMarcher
 from skymodel.render.medium import factor_medium, march_samples

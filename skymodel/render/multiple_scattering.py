@@ -19,7 +19,8 @@ is done in two ways:
   (:func:`_first_order_spherical`); the second order's column transport is corrected
   by the ratio of the two at a few probe wavelengths (:class:`_SphericalTransport`);
   higher orders keep the columns. Measured against the Monte Carlo tracer at sun
-  elevation -4 degrees (docs/accuracy.md): the median difference over the sky fell from
+  elevation -4 degrees (notebooks/twilight_accuracy, "Fixed: the independent
+  columns"): the median difference over the sky fell from
   15 % (columns) to about 1 %.
 
 The sun light that feeds the first order is attenuated along the true spherical path,
@@ -117,7 +118,7 @@ class MultipleScatteringField:
         apart. Measured on a Rayleigh sky at sun -4 degrees, 24 sun nodes against 192:
         mean |error| 2.9 % (log-linear) -> 1.0 % between -6 and -2 degrees, 0.36 % ->
         0.03 % with the sun up; the horizon toward the sun at 450 nm went from -2.9 %
-        to -1.2 % against the Monte Carlo tracer (docs/accuracy.md).
+        to -1.2 % against the Monte Carlo tracer (notebooks/twilight_accuracy).
         """
         pts = np.broadcast_arrays(*(np.asarray(a, float) for a in (h, mu, phi, mu_s)))
         shape, n = pts[0].shape, pts[0].size
@@ -743,7 +744,7 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
     and with the sun transmittance (Earth's shadow included) of the point; the
     scattering angle is constant along the ray (parallel sun). Rays that meet the
     ground add the direct sunlight reflected there, at the ground point's sun cosine.
-    Measured in docs/accuracy.md ("Twilight").
+    Measured in notebooks/twilight_accuracy and docs/validation.md.
 
     Arguments are the grid rays of :func:`solve_multiple_scattering`: start radius
     ``r0`` (m) and zenith cosine ``mu0`` (rays,), samples ``t``, ``dt`` (m) and

@@ -17,7 +17,7 @@ sun at 5 degrees got an optical depth 0.08 too small at 450 nm (rural aerosol, A
 8 % too much sunlight), and the horizon toward that sun (88/0) came out 0.9-1.6 % above
 the Monte Carlo tracer's (se 0.1-0.2 %). Evenly in rho, the lowest nodes lie 6, 25, 56,
 100 m up; that optical depth error is 0.006, and 88/0 is within -0.0..+0.5 %
-(docs/accuracy.md).
+(notebooks/sunward_horizon, "88/0 with the sun at 5 degrees").
 
 Directions below the local horizon (mu < -rho / r) meet the planet: the point is in the
 Earth's shadow. The sun is a disc of angular radius alpha, so near the horizon it sets

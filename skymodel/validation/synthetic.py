@@ -1,6 +1,7 @@
 """Synthetic optical profiles built directly (no data tables): exponential Rayleigh,
 an exponential aerosol with a Henyey-Greenstein phase table, a Gaussian ozone layer.
-Used to test the renderers independently of the data modules."""
+Used by the tests and the validation benchmarks to check the renderers independently of
+the data modules."""
 
 import numpy as np
 
