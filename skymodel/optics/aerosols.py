@@ -39,6 +39,7 @@ import numpy as np
 from skymodel.data import load_npz, load_toml
 from skymodel.errors import SkymodelInputError, check_choice, check_range
 from skymodel.numerics import trapezoid
+from skymodel.scene import parameter
 from skymodel.wavelengths import as_wavelengths
 
 #: Path of the Mie lookup under ``presets/``.
@@ -46,9 +47,9 @@ LOOKUP = "generated/mie_lookup.npz"
 #: Stratospheric choices -> type names in types.toml.
 STRATOSPHERIC = {"background": "stratospheric_background", "volcanic": "volcanic", "none": None}
 #: Allowed amounts.
-AOD_RANGE = (0.0, 10.0)
-TURBIDITY_RANGE = (1.0, 64.0)
-STRATOSPHERIC_AOD_RANGE = (0.0, 2.0)
+AOD_RANGE = (parameter("aod550").minimum, parameter("aod550").maximum)
+TURBIDITY_RANGE = (parameter("turbidity").minimum, parameter("turbidity").maximum)
+STRATOSPHERIC_AOD_RANGE = (parameter("stratospheric_aod550").minimum, parameter("stratospheric_aod550").maximum)
 #: Wavelength pair of the reported Angstrom exponent, nm.
 ANGSTROM_PAIR_NM = (440.0, 675.0)
 

@@ -45,8 +45,10 @@ from skymodel.render.medium import evaluate_many, factor_medium, march_samples
 from skymodel.render.multiple_scattering import MultipleScatteringField, solve_multiple_scattering
 from skymodel.render.rays import altitude_along, atmosphere_segment, sun_direction
 from skymodel.render.sun_transmittance import SunTransmittance
+from skymodel.scene import parameter
 
-MAX_OBSERVER_ALTITUDE_M = 120_000.0
+#: Highest observer altitude, metres (the registry's bound: skymodel.scene).
+MAX_OBSERVER_ALTITUDE_M = parameter("observer_altitude").maximum
 #: Largest peak optical depth (sun path + view path) the aureole table covers; beyond
 #: it the light is spread over tens of degrees and the table's last column is used.
 AUREOLE_MAX_PEAK_TAU = 30.0
