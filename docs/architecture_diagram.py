@@ -3,12 +3,14 @@
     python docs/architecture_diagram.py            # print the Mermaid block
     python docs/architecture_diagram.py --write    # replace it in docs/architecture.md
     python docs/architecture_diagram.py --check    # exit 1 if the doc is out of date
+    python docs/architecture_diagram.py --counts   # print it with import counts on the arrows
 
 The import graph comes from grimp (installed with import-linter, the tool that checks the
 same contracts in CI). Each wing of ``skymodel`` (and the add-on) is one box; an arrow
-``A --> B`` means some module of A imports some module of B, labelled with how many
-module-to-module imports there are. The base modules (errors, numerics, geometry,
-wavelengths, colorimetry, sun, scene) are one box.
+``A --> B`` means some module of A imports some module of B (``--counts`` labels it with
+how many module-to-module imports there are; the doc leaves the counts out so that it
+changes only when a wing starts or stops depending on another). The base modules
+(errors, numerics, geometry, wavelengths, colorimetry, sun, scene) are one box.
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ def wing_edges() -> Counter:
     return edges
 
 
-def mermaid(edges: Counter) -> str:
+def mermaid(edges: Counter, counts: bool = False) -> str:
     label = {w: w.replace("skymodel.", "skymodel/").replace(".", "/") + ("/" if w != "base" else "")
              for w in (*WINGS, "base")}
     label["base"] = "base: errors, numerics, geometry, wavelengths, colorimetry, sun, scene"
@@ -61,8 +63,9 @@ def mermaid(edges: Counter) -> str:
     lines = ["```mermaid", "flowchart TD"]
     for w in (*WINGS, "base"):
         lines.append(f'    {ident[w]}["{label[w]}"]')
-    for (a, b), n in sorted(edges.items(), key=lambda kv: ((*WINGS, "base").index(kv[0][0]), -kv[1], kv[0][1])):
-        lines.append(f"    {ident[a]} -->|{n}| {ident[b]}")
+    order = (*WINGS, "base")
+    for (a, b), n in sorted(edges.items(), key=lambda kv: (order.index(kv[0][0]), order.index(kv[0][1]))):
+        lines.append(f"    {ident[a]} -->|{n}| {ident[b]}" if counts else f"    {ident[a]} --> {ident[b]}")
     lines.append("```")
     return "\n".join(lines)
 
@@ -81,7 +84,11 @@ def main(argv=None) -> int:
     g = ap.add_mutually_exclusive_group()
     g.add_argument("--write", action="store_true", help="replace the diagram in docs/architecture.md")
     g.add_argument("--check", action="store_true", help="exit 1 if docs/architecture.md is out of date")
+    g.add_argument("--counts", action="store_true", help="print the diagram with import counts on the arrows")
     args = ap.parse_args(argv)
+    if args.counts:
+        print(mermaid(wing_edges(), counts=True))
+        return 0
     new = block()
     if args.write or args.check:
         text = DOC.read_text(encoding="utf-8")
