@@ -25,16 +25,6 @@ For a view ray from the observer O in direction v (looking along v) the radiance
   the small-angle approximation (:mod:`skymodel.render.aureole`,
   ``MarchSettings.peak_aureole``); it is counted in ``multiple``.
 
-The components of :class:`SkyRadiance`: ``single`` is true single scattering (J_1 seen
-through the true extinction, full phase functions: exactly what an ``orders=1`` render
-gives) and ``ground`` the directly lit ground seen through the true extinction. The
-solver works with delta-M: its first order is the phase function outside the truncated
-forward peak seen through the scaled extinction, so the total counts the first
-scattering that way (:meth:`SkyMarcher._delta_m_first_scattering`) and the direct sun on
-the ground through the scaled extinction as well; the (non-negative) excess of those over
-``single`` and ``ground`` is counted in ``multiple``, together with J_ms, the solver's
-ground light and the peak aureole. The total does not depend on this split.
-
 Single scattering and the ground are evaluated for every direction at every wavelength;
 the multiple-scattering part is gathered on a grid of view directions (zenith angle x
 azimuth from the sun, split at the observer's horizon so the sky/ground edge stays sharp)
@@ -145,47 +135,148 @@ def solver_wavelengths(wavelengths_nm, step_nm: float) -> np.ndarray:
     return np.linspace(wl.min(), wl.max(), n)
 
 
+def optics_key(profile, settings: MarchSettings) -> str:
+    """A hash (hex SHA-256) of everything a :class:`SkySolution` depends on: every array and
+    number of the optical profile except the solar spectrum (the solution is per unit solar
+    irradiance, so the Earth-sun distance does not enter) and its metadata, plus the march
+    settings. Two profiles with the same key share one multiple-scattering solve."""
+    import dataclasses
+    import hashlib
+
+    h = hashlib.sha256(type(profile).__name__.encode())
+    for f in dataclasses.fields(profile):
+        if f.name in ("solar_irradiance", "metadata"):
+            continue
+        v = getattr(profile, f.name)
+        h.update(f.name.encode())
+        if isinstance(v, np.ndarray):
+            a = np.ascontiguousarray(v)
+            h.update(str((a.dtype.str, a.shape)).encode())
+            h.update(a.tobytes())
+        else:
+            h.update(repr(v).encode())
+    h.update(repr(settings).encode())
+    return h.hexdigest()
+
+
+@dataclass
+class SkySolution:
+    """What a sky costs before its sun is placed: the factored media, the sun
+    transmittance table, the multiple-scattering field (its table spans every sun
+    elevation, :func:`~skymodel.render.multiple_scattering.sun_elevation_nodes`) and the
+    peak-aureole table. None of it depends on the sun's elevation or azimuth (the azimuth
+    only rotates the sky about the zenith), on the observer's altitude, or on the solar
+    spectrum's scale: one solution serves every frame of a sequence whose optical profile
+    is the same (:func:`optics_key`). Build it with :func:`solve_sky`; pass it to
+    :class:`SkyMarcher` (``solution=``)."""
+
+    key: str
+    settings: MarchSettings
+    medium: object
+    medium_ms: object
+    sun_table: SunTransmittance
+    field: MultipleScatteringField
+    to_full: np.ndarray
+    aureole: tuple | None
+    timings: dict
+
+
+def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> SkySolution:
+    """The sun-independent part of a sky (:class:`SkySolution`) for ``profile``: the
+    tables and the multiple-scattering solve, about 80 % of a single ``final`` render."""
+    if not isinstance(profile, (OpticalProfile, LayeredProfile)):
+        raise TypeError("profile must be an OpticalProfile or LayeredProfile")
+    s = settings or MarchSettings()
+    t_start = time.perf_counter()
+    R, top = profile.planet_radius_m, profile.top_altitude_m
+    medium = factor_medium(profile, s.delta_m_cutoff_deg)
+    # multiple scattering runs at the solver wavelengths, per unit solar irradiance
+    wl_ms = solver_wavelengths(profile.wavelengths_nm, s.ms_wavelength_step_nm)
+    prof_ms = profile_at_wavelengths(profile, wl_ms)
+    prof_ms = replace(prof_ms, solar_irradiance=np.ones_like(wl_ms))
+    medium_ms = factor_medium(prof_ms, s.delta_m_cutoff_deg)
+    # one table serves all: medium 0 = true extinction on the full grid, medium 1 =
+    # delta-M scaled extinction at the solver wavelengths, medium 2 = the same on the full grid
+    sun_table = SunTransmittance([medium.extinction, medium_ms.extinction_scaled, medium.extinction_scaled], R,
+                                 top, s.sun_table_altitudes, s.sun_table_x, s.sun_table_steps,
+                                 earth_shadow=s.earth_shadow)
+    timings = {"tables_s": time.perf_counter() - t_start}
+    t1 = time.perf_counter()
+    ms_field: MultipleScatteringField = solve_multiple_scattering(
+        prof_ms, medium_ms, sun_table, n_altitudes=s.table_altitudes, n_mu=s.table_mu,
+        n_phi=s.table_phi, n_mus=s.table_mus, n_steps=s.table_steps, orders=s.orders,
+        max_orders=s.max_orders, tolerance=s.order_tolerance, spherical_orders=s.spherical_orders,
+        spherical_probe_step_nm=s.spherical_probe_step_nm, progress=progress)
+    to_full = linear_interp_matrix(wl_ms, profile.wavelengths_nm)
+    aureole = (peak_aureole_table(profile, medium, s.delta_m_cutoff_deg, top)
+               if (s.peak_aureole and ms_field.orders > 1) else None)
+    timings["multiple_scattering_s"] = time.perf_counter() - t1
+    return SkySolution(optics_key(profile, s), s, medium, medium_ms, sun_table, ms_field, to_full, aureole, timings)
+
+
+def peak_aureole_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: float):
+    """Table of the peak light that delta-M leaves out (:mod:`skymodel.render.aureole`):
+    (theta grid in radians, peak optical depth grid, table (n_theta, n_tau, n_wl) in
+    sr^-1), or None when the aerosols have no truncated peak."""
+    from skymodel.numerics import trapezoid
+    from skymodel.render.aureole import THETA_MAX_RAD, PeakAureole, peak_part
+
+    prof, med = profile, medium
+    if not np.any(med.forward_fraction > 0):
+        return None
+    # one peak shape: the regimes' normalised peaks weighted by their column peak optical depth
+    z = np.linspace(0.0, top_altitude_m, 2001)
+    col = np.stack([trapezoid(lr.at(z), z, axis=0) for lr in med.aerosol]) * med.forward_fraction  # (R, W)
+    total = col.sum(axis=0)
+    machine = PeakAureole()
+    peaks = peak_part(prof.aerosol_phase_angles_deg, prof.aerosol_phase, delta_m_cutoff_deg)
+    q = np.zeros((machine.theta.size, prof.wavelengths_nm.size))
+    for r in range(peaks.shape[0]):
+        if np.any(col[r] > 0):
+            share = np.where(total > 0, col[r] / np.where(total > 0, total, 1.0), 0.0)
+            q += machine.shape_on_grid(prof.aerosol_phase_angles_deg, peaks[r]) * share
+    theta = np.linspace(0.0, THETA_MAX_RAD, 601)
+    tau = np.concatenate([[0.0], np.geomspace(0.005, AUREOLE_MAX_PEAK_TAU, 47)])
+    return theta, tau, machine.correction_table(q, tau, theta)
+
+
 class SkyMarcher:
     """Everything that depends on the medium and the sun but not on the view directions:
-    build once, then ask for radiance in as many directions as needed."""
+    build once, then ask for radiance in as many directions as needed.
+
+    ``solution``: a :class:`SkySolution` of the same optical profile and settings (from
+    :func:`solve_sky`) to reuse instead of solving again; the profile may differ from the
+    solution's only in its solar spectrum (the date's Earth-sun distance)."""
 
     def __init__(self, profile, sun_elevation_deg: float, sun_azimuth_deg: float = 180.0,
-                 observer_altitude_m: float = 0.0, settings: MarchSettings | None = None, progress=None):
+                 observer_altitude_m: float = 0.0, settings: MarchSettings | None = None, progress=None,
+                 solution: SkySolution | None = None):
         if not isinstance(profile, (OpticalProfile, LayeredProfile)):
             raise TypeError("profile must be an OpticalProfile or LayeredProfile")
+        if solution is not None and settings is None:
+            settings = solution.settings
         self.settings = s = settings or MarchSettings()
         self.profile = profile
         self.sun_elevation_deg = check_range("sun_elevation", sun_elevation_deg, -90.0, 90.0, "degrees")
         self.sun_azimuth_deg = float(sun_azimuth_deg) % 360.0
         self.observer_altitude_m = check_range("observer_altitude", observer_altitude_m, 0.0,
                                                MAX_OBSERVER_ALTITUDE_M, "metres")
-        t_start = time.perf_counter()
         self.R = profile.planet_radius_m
         self.top = profile.top_altitude_m
         self.sun = sun_direction(self.sun_elevation_deg, self.sun_azimuth_deg)
         self.origin = np.array([0.0, 0.0, self.R + self.observer_altitude_m])
-        self.medium = factor_medium(profile, s.delta_m_cutoff_deg)
-        # multiple scattering runs at the solver wavelengths, per unit solar irradiance
-        wl_ms = solver_wavelengths(profile.wavelengths_nm, s.ms_wavelength_step_nm)
-        prof_ms = profile_at_wavelengths(profile, wl_ms)
-        prof_ms = replace(prof_ms, solar_irradiance=np.ones_like(wl_ms))
-        self.medium_ms = factor_medium(prof_ms, s.delta_m_cutoff_deg)
-        # one table serves all: medium 0 = true extinction on the full grid, medium 1 =
-        # delta-M scaled extinction at the solver wavelengths, medium 2 = the same on the full grid
-        self.sun_table = SunTransmittance([self.medium.extinction, self.medium_ms.extinction_scaled,
-                                           self.medium.extinction_scaled], self.R,
-                                          self.top, s.sun_table_altitudes, s.sun_table_x, s.sun_table_steps,
-                                          earth_shadow=s.earth_shadow)
-        self.timings = {"tables_s": time.perf_counter() - t_start}
-        t1 = time.perf_counter()
-        self.field: MultipleScatteringField = solve_multiple_scattering(
-            prof_ms, self.medium_ms, self.sun_table, n_altitudes=s.table_altitudes, n_mu=s.table_mu,
-            n_phi=s.table_phi, n_mus=s.table_mus, n_steps=s.table_steps, orders=s.orders,
-            max_orders=s.max_orders, tolerance=s.order_tolerance, spherical_orders=s.spherical_orders,
-            spherical_probe_step_nm=s.spherical_probe_step_nm, progress=progress)
-        self.to_full = linear_interp_matrix(wl_ms, profile.wavelengths_nm)
-        self._aureole = self._peak_aureole() if (s.peak_aureole and self.field.orders > 1) else None
-        self.timings["multiple_scattering_s"] = time.perf_counter() - t1
+        if solution is None:
+            solution = solve_sky(profile, s, progress=progress)
+            self.timings = dict(solution.timings)
+        else:
+            if solution.key != optics_key(profile, s):
+                raise ValueError("the SkySolution was solved for another optical profile or other settings")
+            self.timings = {"tables_s": 0.0, "multiple_scattering_s": 0.0, "reused_solution": True}
+        self.solution = solution
+        self.medium, self.medium_ms, self.sun_table = solution.medium, solution.medium_ms, solution.sun_table
+        self.field: MultipleScatteringField = solution.field
+        self.to_full = solution.to_full
+        self._aureole = solution.aureole
         t2 = time.perf_counter()
         self._grid = None if s.exact else self._build_grid()
         self.timings["direction_grid_s"] = time.perf_counter() - t2
@@ -293,29 +384,8 @@ class SkyMarcher:
         return tab[:, idx, :] * (1.0 - t) + tab[:, idx + 1, :] * t
 
     def _peak_aureole(self):
-        """Table of the peak light that delta-M leaves out (:mod:`skymodel.render.aureole`):
-        (theta grid in radians, peak optical depth grid, table (n_theta, n_tau, n_wl) in
-        sr^-1), or None when the aerosols have no truncated peak."""
-        from skymodel.numerics import trapezoid
-        from skymodel.render.aureole import THETA_MAX_RAD, PeakAureole, peak_part
-
-        prof, med = self.profile, self.medium
-        if not np.any(med.forward_fraction > 0):
-            return None
-        # one peak shape: the regimes' normalised peaks weighted by their column peak optical depth
-        z = np.linspace(0.0, self.top, 2001)
-        col = np.stack([trapezoid(lr.at(z), z, axis=0) for lr in med.aerosol]) * med.forward_fraction  # (R, W)
-        total = col.sum(axis=0)
-        machine = PeakAureole()
-        peaks = peak_part(prof.aerosol_phase_angles_deg, prof.aerosol_phase, self.settings.delta_m_cutoff_deg)
-        q = np.zeros((machine.theta.size, prof.wavelengths_nm.size))
-        for r in range(peaks.shape[0]):
-            if np.any(col[r] > 0):
-                share = np.where(total > 0, col[r] / np.where(total > 0, total, 1.0), 0.0)
-                q += machine.shape_on_grid(prof.aerosol_phase_angles_deg, peaks[r]) * share
-        theta = np.linspace(0.0, THETA_MAX_RAD, 601)
-        tau = np.concatenate([[0.0], np.geomspace(0.005, AUREOLE_MAX_PEAK_TAU, 47)])
-        return theta, tau, machine.correction_table(q, tau, theta)
+        """The peak-aureole table of this marcher's medium (:func:`peak_aureole_table`)."""
+        return peak_aureole_table(self.profile, self.medium, self.settings.delta_m_cutoff_deg, self.top)
 
     def _aureole_gather(self, cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s, block: int = 256):
         """Integral along view rays (C, S) of the peak light left out by delta-M:
@@ -349,25 +419,6 @@ class SkyMarcher:
             c = lo * (1 - fi) + hi * fi
             out[sel] = (step * t_sun_s[sel] * trans_s[sel] * c).sum(axis=1)
         return out * self.profile.solar_irradiance
-
-    def _delta_m_first_scattering(self, cos_theta, dt, ray, regimes, aers, pa, trans, t_sun, trans_s, t_sun_s):
-        """The first scattering of sunlight as the delta-M solver counts it (per unit of
-        the result's solar spectrum applied): the part of every phase function outside the
-        truncated forward peak, p_cap = min(p, p(cutoff)), seen through the scaled
-        extinction (light scattered into the peak on the way counts as undeflected, as in
-        the solver's diffuse field), the peak p - p_cap through the true extinction. Its
-        excess over true single scattering is light the solver's orders >= 2 leave out
-        (the forward-scattered part of the scaled-out extinction), so the total keeps it,
-        in ``multiple``."""
-        prof = self.profile
-        p_cap = self._capped_aerosol_phase(cos_theta)  # (R, C, W)
-        broad = ray * prof.rayleigh_phase(cos_theta)[:, None, :]
-        peak = np.zeros_like(broad)
-        for reg, sig in zip(regimes, aers):
-            broad = broad + sig * p_cap[reg][:, None, :]
-            peak = peak + sig * np.maximum(pa[reg] - p_cap[reg], 0.0)[:, None, :]
-        return prof.solar_irradiance * ((trans_s * t_sun_s * broad + trans * t_sun * peak)
-                                        * dt[..., None]).sum(axis=1)
 
     # ---------------------------------------------------------------- public
     def direct_sun_irradiance(self) -> np.ndarray:
@@ -427,24 +478,33 @@ class SkyMarcher:
         cos_theta = d @ self.sun  # (C,)
         pa = prof.aerosol_phase_at(cos_theta)  # (R, C, W)
         ms_on = self.field.orders > 1
-        # single scattering: true extinction, full phase functions (with or without the
-        # multiple-scattering part, so ``single`` is what an orders=1 render gives)
-        scat = ray * prof.rayleigh_phase(cos_theta)[:, None, :]
-        for reg, sig in zip(regimes, aers):
-            scat = scat + sig * pa[reg][:, None, :]
-        single = prof.solar_irradiance * (trans * t_sun * scat * dt[..., None]).sum(axis=1)
-        # delta-M bookkeeping (with multiple scattering) that the total needs but single
-        # scattering is not: counted in ``multiple`` (see _delta_m_first_scattering)
-        rebalance = np.zeros_like(single)
-        if ms_on:
+        if not ms_on:
+            # single scattering alone: true extinction, full phase functions
+            scat = ray * prof.rayleigh_phase(cos_theta)[:, None, :]
+            for reg, sig in zip(regimes, aers):
+                scat = scat + sig * pa[reg][:, None, :]
+            single = prof.solar_irradiance * (trans * t_sun * scat * dt[..., None]).sum(axis=1)
+            step_tau_ground = step_tau
+        else:
+            # With multiple scattering, the first scattering is split as in the solver
+            # (delta-M): the part of every phase function outside the truncated forward
+            # peak, p_cap = min(p, p(cutoff)), is seen through the scaled extinction
+            # (light scattered into the peak on the way counts as undeflected, as in the
+            # solver's diffuse field); the peak p - p_cap through the true extinction.
             step_tau_s = ext_s * dt[..., None]
             trans_s = np.exp(-(np.cumsum(step_tau_s, axis=1) - 0.5 * step_tau_s))
             t_sun_s = self.sun_table.transmittance(h, mus, which=2)
-            first = self._delta_m_first_scattering(cos_theta, dt, ray, regimes, aers, pa, trans, t_sun,
-                                                   trans_s, t_sun_s)
-            rebalance = first - single
+            p_cap = self._capped_aerosol_phase(cos_theta)  # (R, C, W)
+            broad = ray * prof.rayleigh_phase(cos_theta)[:, None, :]
+            peak = np.zeros_like(broad)
+            for reg, sig in zip(regimes, aers):
+                broad = broad + sig * p_cap[reg][:, None, :]
+                peak = peak + sig * np.maximum(pa[reg] - p_cap[reg], 0.0)[:, None, :]
+            single = prof.solar_irradiance * ((trans_s * t_sun_s * broad + trans * t_sun * peak)
+                                              * dt[..., None]).sum(axis=1)
             if self._aureole is not None:
                 aureole = self._aureole_gather(cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s)
+            step_tau_ground = step_tau_s
         # ground seen directly: direct sun and (from the solver) diffuse sky light
         ground = np.zeros_like(single)
         ms_ground = np.zeros_like(single)
@@ -453,23 +513,14 @@ class SkyMarcher:
             p_g = self.origin + t1[gi, None] * d[gi]
             n_g = p_g / np.linalg.norm(p_g, axis=1, keepdims=True)
             mus_g = n_g @ self.sun
-            albedo = prof.ground_albedo / np.pi
-            cos_g = np.maximum(mus_g, 0.0)[:, None]
-            # the directly lit ground through the true extinction (what orders=1 gives)
-            t_ground = np.exp(-step_tau[gi].sum(axis=1))  # (G, W)
-            e_dir = prof.solar_irradiance * self.sun_table.transmittance(np.zeros(gi.size), mus_g, which=0) * cos_g
-            ground[gi] = t_ground * albedo * e_dir
+            t_ground = np.exp(-step_tau_ground[gi].sum(axis=1))  # (G, W)
+            e_dir = prof.solar_irradiance * self.sun_table.transmittance(
+                np.zeros(gi.size), mus_g, which=2 if ms_on else 0) * np.maximum(mus_g, 0.0)[:, None]
+            ground[gi] = t_ground * prof.ground_albedo / np.pi * e_dir
             if ms_on:
-                # the solver's ground light is seen through the delta-M scaled extinction,
-                # and so is the direct sun on the ground in the total: the difference to
-                # the true extinction goes with ``multiple`` as for the sky
-                t_ground_s = np.exp(-step_tau_s[gi].sum(axis=1))
-                e_dir_s = prof.solar_irradiance * self.sun_table.transmittance(
-                    np.zeros(gi.size), mus_g, which=2) * cos_g
                 e_diff = (self.field.ground_irradiance_at(mus_g) @ self.to_full) * prof.solar_irradiance
-                ms_ground[gi] = t_ground_s * albedo * e_diff
-                rebalance[gi] += t_ground_s * albedo * e_dir_s - ground[gi]
-        multiple = ms_ground + rebalance
+                ms_ground[gi] = t_ground * prof.ground_albedo / np.pi * e_diff
+        multiple = ms_ground
         if ms_on and self._aureole is not None:
             multiple = multiple + aureole
         if ms_on:

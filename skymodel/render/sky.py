@@ -99,19 +99,21 @@ def check_render_arguments(profile, camera, sun_elevation_deg, sun_azimuth_deg, 
 
 def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_deg: float = 180.0,
                observer_altitude_m: float = 0.0, quality=None, include_sun: bool = True,
-               progress=None) -> SkyImage:
+               progress=None, solution=None) -> SkyImage:
     """Render ``camera``'s pixels for the atmosphere ``profile`` (smooth or layered).
 
     ``sun_elevation_deg`` [deg] in -12..90 (below -12 is night: refused, not clamped),
     ``sun_azimuth_deg`` [deg], ``observer_altitude_m`` [m]; ``quality``: a preset name, a
     MarchSettings, or None for the default quality (:mod:`skymodel.scene`, ``quality``).
-    Every argument is checked before the march (:func:`check_render_arguments`)."""
+    Every argument is checked before the march (:func:`check_render_arguments`).
+    ``solution``: a :class:`~skymodel.render.marcher.SkySolution` of this profile to reuse
+    instead of solving multiple scattering again (:mod:`skymodel.render.sequence`)."""
     settings = check_render_arguments(profile, camera, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m,
                                       quality)
     sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings = settings
     t0 = time.perf_counter()
     marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
-                         progress=progress)
+                         progress=progress, solution=solution)
     dirs, valid = camera.directions()
     radiance, res_info, _ = _march_pixels(marcher, dirs, valid, None, profile.wavelengths_nm.size, None)
     sun_irr = marcher.direct_sun_irradiance()
@@ -130,12 +132,13 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
 
 def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce, n_channels: int,
                        sun_azimuth_deg: float = 180.0, observer_altitude_m: float = 0.0, quality=None,
-                       band_pixels: int = 65536, progress=None):
+                       band_pixels: int = 65536, progress=None, solution=None):
     """Render ``camera`` without ever holding the whole spectral cube: the image is marched
     in bands of about ``band_pixels`` pixels and each band's spectra are reduced at once by
     ``reduce(radiance (n, n_wl), wavelengths_nm) -> (n, n_channels)`` (e.g. to scene-linear
     RGB). Memory then grows with the image as ``n_channels`` values per pixel, not
     ``n_wl``. The sun disc is not added (a renderer that wants it draws a lamp).
+    ``solution``: as in :func:`render_sky`.
 
     Returns ``(image (H, W, n_channels), sun_irradiance (n_wl,), info)``; invalid pixels are 0.
     """
@@ -144,7 +147,7 @@ def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce
     sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings = settings
     t0 = time.perf_counter()
     marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
-                         progress=progress)
+                         progress=progress, solution=solution)
     dirs, valid = camera.directions()
     out, info, bands = _march_pixels(marcher, dirs, valid, reduce, n_channels, band_pixels)
     info["total_s"] = time.perf_counter() - t0

@@ -1,0 +1,92 @@
+"""One multiple-scattering solve shared by the frames of a sequence (issue #19)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from skymodel import Atmosphere, scene
+from skymodel.render.cameras import make_camera
+from skymodel.render.marcher import SkyMarcher, optics_key, solve_sky
+from skymodel.render.quality import quality_settings
+from skymodel.errors import SkymodelInputError
+from skymodel.render.sequence import SolutionCache, render_frame, render_frame_reduced
+from skymodel.render.sky import render_sky, render_sky_reduced
+
+# small tables so that the test is quick; the sharing does not depend on their size
+SETTINGS = replace(quality_settings("preview"), table_altitudes=10, table_mu=12, table_phi=6, table_mus=10,
+                   table_steps=16, sun_table_altitudes=24, sun_table_x=32, sun_table_steps=32, grid_zenith=16,
+                   grid_zenith_ground=6, grid_azimuth=9, max_orders=4)
+WL = np.linspace(400.0, 700.0, 7)
+
+
+def _profile(sun=None, day=172):
+    prof = Atmosphere(location="zaragoza", month=6, day_of_year=day, n_altitudes=64).optical_profile(WL)
+    if sun is not None and sun.earth_sun_distance_au != 1.0:
+        prof = replace(prof, solar_irradiance=prof.solar_irradiance / sun.earth_sun_distance_au**2)
+    return prof
+
+
+def test_three_frames_equal_three_independent_renders():
+    cam = make_camera("equirectangular", 16, 8, n_wavelengths=WL.size)
+    cache = SolutionCache()
+    for local in ("2026-06-21T19:00", "2026-06-21T21:00", "2026-06-21T21:40"):
+        sun = scene.place_sun(41.65, -0.88, local, timezone="Europe/Madrid")
+        prof = _profile(sun)
+        alone = render_sky(prof, cam, sun.elevation_deg, sun.azimuth_deg, 0.0, SETTINGS)
+        frame = render_frame(prof, cam, sun.elevation_deg, sun.azimuth_deg, 0.0, SETTINGS, cache=cache)
+        # the same arithmetic on the same arrays: equal to the bit, not only to round-off
+        assert np.array_equal(alone.radiance, frame.radiance), local
+        assert np.array_equal(alone.sun_irradiance, frame.sun_irradiance)
+    assert cache.stats["solves"] == 1 and cache.stats["memory_hits"] == 2
+
+
+def test_the_solution_ignores_the_sun_and_the_solar_scale_but_not_the_optics():
+    prof = _profile()
+    sol = solve_sky(prof, SETTINGS)
+    brighter = replace(prof, solar_irradiance=prof.solar_irradiance * 1.03)
+    assert optics_key(brighter, SETTINGS) == sol.key
+    m = SkyMarcher(brighter, 5.0, 250.0, 0.0, SETTINGS, solution=sol)
+    assert m.timings["reused_solution"] and m.field is sol.field
+    winter = _profile(day=355)  # another ozone column: another solve
+    assert optics_key(winter, SETTINGS) != sol.key
+    with pytest.raises(ValueError, match="another optical profile"):
+        SkyMarcher(winter, 5.0, 250.0, 0.0, SETTINGS, solution=sol)
+
+
+def test_disk_cache_round_trip_and_a_corrupt_file_is_solved_again(tmp_path):
+    prof = _profile()
+    first = SolutionCache(tmp_path)
+    sol = first.get(prof, SETTINGS)
+    path = first.path(sol.key)
+    assert path.is_file() and not list(tmp_path.glob("*.tmp"))
+    again = SolutionCache(tmp_path)
+    loaded = again.get(prof, SETTINGS)
+    assert again.stats["disk_hits"] == 1 and again.stats["solves"] == 0
+    assert np.array_equal(loaded.field.source, sol.field.source)
+    path.write_bytes(path.read_bytes()[:100])  # truncated
+    third = SolutionCache(tmp_path)
+    third.get(prof, SETTINGS)
+    assert third.stats["corrupt"] == 1 and third.stats["solves"] == 1
+    assert SolutionCache(tmp_path).get(prof, SETTINGS) is not None  # rewritten, readable
+
+
+def test_reduced_frames_share_the_solve_and_bad_input_is_refused_before_it():
+    cam = make_camera("equirectangular", 16, 8, n_wavelengths=WL.size)
+    prof = _profile()
+    cache = SolutionCache()
+
+    def reduce(rad, wl):
+        return rad[:, [1, 3, 5]]
+
+    for el in (12.0, -3.0):
+        alone, irr_a, _ = render_sky_reduced(prof, cam, el, reduce, 3, 250.0, 0.0, SETTINGS, band_pixels=50)
+        frame, irr_f, info = render_frame_reduced(prof, cam, el, reduce, 3, 250.0, 0.0, SETTINGS, band_pixels=50,
+                                                  cache=cache)
+        assert np.array_equal(alone, frame) and np.array_equal(irr_a, irr_f)
+    assert cache.stats["solves"] == 1 and info["solve_reused"]
+    with pytest.raises(SkymodelInputError, match="sun_elevation"):
+        render_frame(prof, cam, -13.0, 180.0, 0.0, SETTINGS, cache=cache)
+    assert cache.stats["solves"] == 1
