@@ -190,3 +190,23 @@ def test_chunk_size_does_not_change_the_result():
     whole = SkyMarcher(prof, 30.0, 180.0, 0.0, replace(s, chunk=100_000)).radiance(d).radiance
     pieces = SkyMarcher(prof, 30.0, 180.0, 0.0, replace(s, chunk=37)).radiance(d).radiance
     np.testing.assert_array_equal(whole, pieces)
+
+
+@pytest.mark.parametrize("exact", [False, True])
+def test_single_component_is_true_single_scattering(exact):
+    """With multiple scattering on, ``single`` (and the directly lit ``ground``) are what an
+    orders=1 render gives: true extinction, full phase functions, not the delta-M reduced
+    extinction the solver uses (that bookkeeping goes with ``multiple``, never negative)."""
+    from dataclasses import replace
+
+    from skymodel import Atmosphere
+
+    prof = Atmosphere(location="desert", month=6).optical_profile([450.0, 650.0])
+    s = replace(FAST, exact=exact, delta_m_cutoff_deg=12.0)
+    d = dirs([0, 30, 60, 85, 89, 95, 120, 170, 5, 60], [0, 180, 90, 180, 0, 180, 30, 0, 175, 170])
+    full = SkyMarcher(prof, 30.0, 180.0, 0.0, s).radiance(d)
+    once = SkyMarcher(prof, 30.0, 180.0, 0.0, replace(s, orders=1)).radiance(d)
+    assert full.info["orders"] > 1 and once.info["orders"] == 1
+    np.testing.assert_allclose(full.single, once.single, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(full.ground, once.ground, rtol=1e-12, atol=0)
+    assert np.all(full.multiple >= 0) and np.all(full.multiple[d[:, 2] > 0] > 0)

@@ -25,6 +25,16 @@ For a view ray from the observer O in direction v (looking along v) the radiance
   the small-angle approximation (:mod:`skymodel.render.aureole`,
   ``MarchSettings.peak_aureole``); it is counted in ``multiple``.
 
+The components of :class:`SkyRadiance`: ``single`` is true single scattering (J_1 seen
+through the true extinction, full phase functions: exactly what an ``orders=1`` render
+gives) and ``ground`` the directly lit ground seen through the true extinction. The
+solver works with delta-M: its first order is the phase function outside the truncated
+forward peak seen through the scaled extinction, so the total counts the first
+scattering that way (:meth:`SkyMarcher._delta_m_first_scattering`) and the direct sun on
+the ground through the scaled extinction as well; the (non-negative) excess of those over
+``single`` and ``ground`` is counted in ``multiple``, together with J_ms, the solver's
+ground light and the peak aureole. The total does not depend on this split.
+
 Single scattering and the ground are evaluated for every direction at every wavelength;
 the multiple-scattering part is gathered on a grid of view directions (zenith angle x
 azimuth from the sun, split at the observer's horizon so the sky/ground edge stays sharp)
@@ -420,6 +430,25 @@ class SkyMarcher:
             out[sel] = (step * t_sun_s[sel] * trans_s[sel] * c).sum(axis=1)
         return out * self.profile.solar_irradiance
 
+    def _delta_m_first_scattering(self, cos_theta, dt, ray, regimes, aers, pa, trans, t_sun, trans_s, t_sun_s):
+        """The first scattering of sunlight as the delta-M solver counts it (per unit of
+        the result's solar spectrum applied): the part of every phase function outside the
+        truncated forward peak, p_cap = min(p, p(cutoff)), seen through the scaled
+        extinction (light scattered into the peak on the way counts as undeflected, as in
+        the solver's diffuse field), the peak p - p_cap through the true extinction. Its
+        excess over true single scattering is light the solver's orders >= 2 leave out
+        (the forward-scattered part of the scaled-out extinction), so the total keeps it,
+        in ``multiple``."""
+        prof = self.profile
+        p_cap = self._capped_aerosol_phase(cos_theta)  # (R, C, W)
+        broad = ray * prof.rayleigh_phase(cos_theta)[:, None, :]
+        peak = np.zeros_like(broad)
+        for reg, sig in zip(regimes, aers):
+            broad = broad + sig * p_cap[reg][:, None, :]
+            peak = peak + sig * np.maximum(pa[reg] - p_cap[reg], 0.0)[:, None, :]
+        return prof.solar_irradiance * ((trans_s * t_sun_s * broad + trans * t_sun * peak)
+                                        * dt[..., None]).sum(axis=1)
+
     # ---------------------------------------------------------------- public
     def direct_sun_irradiance(self) -> np.ndarray:
         """Solar irradiance (W m^-2 nm^-1) on a surface facing the sun at the observer,
@@ -478,33 +507,24 @@ class SkyMarcher:
         cos_theta = d @ self.sun  # (C,)
         pa = prof.aerosol_phase_at(cos_theta)  # (R, C, W)
         ms_on = self.field.orders > 1
-        if not ms_on:
-            # single scattering alone: true extinction, full phase functions
-            scat = ray * prof.rayleigh_phase(cos_theta)[:, None, :]
-            for reg, sig in zip(regimes, aers):
-                scat = scat + sig * pa[reg][:, None, :]
-            single = prof.solar_irradiance * (trans * t_sun * scat * dt[..., None]).sum(axis=1)
-            step_tau_ground = step_tau
-        else:
-            # With multiple scattering, the first scattering is split as in the solver
-            # (delta-M): the part of every phase function outside the truncated forward
-            # peak, p_cap = min(p, p(cutoff)), is seen through the scaled extinction
-            # (light scattered into the peak on the way counts as undeflected, as in the
-            # solver's diffuse field); the peak p - p_cap through the true extinction.
+        # single scattering: true extinction, full phase functions (with or without the
+        # multiple-scattering part, so ``single`` is what an orders=1 render gives)
+        scat = ray * prof.rayleigh_phase(cos_theta)[:, None, :]
+        for reg, sig in zip(regimes, aers):
+            scat = scat + sig * pa[reg][:, None, :]
+        single = prof.solar_irradiance * (trans * t_sun * scat * dt[..., None]).sum(axis=1)
+        # delta-M bookkeeping (with multiple scattering) that the total needs but single
+        # scattering is not: counted in ``multiple`` (see _delta_m_first_scattering)
+        rebalance = np.zeros_like(single)
+        if ms_on:
             step_tau_s = ext_s * dt[..., None]
             trans_s = np.exp(-(np.cumsum(step_tau_s, axis=1) - 0.5 * step_tau_s))
             t_sun_s = self.sun_table.transmittance(h, mus, which=2)
-            p_cap = self._capped_aerosol_phase(cos_theta)  # (R, C, W)
-            broad = ray * prof.rayleigh_phase(cos_theta)[:, None, :]
-            peak = np.zeros_like(broad)
-            for reg, sig in zip(regimes, aers):
-                broad = broad + sig * p_cap[reg][:, None, :]
-                peak = peak + sig * np.maximum(pa[reg] - p_cap[reg], 0.0)[:, None, :]
-            single = prof.solar_irradiance * ((trans_s * t_sun_s * broad + trans * t_sun * peak)
-                                              * dt[..., None]).sum(axis=1)
+            first = self._delta_m_first_scattering(cos_theta, dt, ray, regimes, aers, pa, trans, t_sun,
+                                                   trans_s, t_sun_s)
+            rebalance = first - single
             if self._aureole is not None:
                 aureole = self._aureole_gather(cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s)
-            step_tau_ground = step_tau_s
         # ground seen directly: direct sun and (from the solver) diffuse sky light
         ground = np.zeros_like(single)
         ms_ground = np.zeros_like(single)
@@ -513,14 +533,23 @@ class SkyMarcher:
             p_g = self.origin + t1[gi, None] * d[gi]
             n_g = p_g / np.linalg.norm(p_g, axis=1, keepdims=True)
             mus_g = n_g @ self.sun
-            t_ground = np.exp(-step_tau_ground[gi].sum(axis=1))  # (G, W)
-            e_dir = prof.solar_irradiance * self.sun_table.transmittance(
-                np.zeros(gi.size), mus_g, which=2 if ms_on else 0) * np.maximum(mus_g, 0.0)[:, None]
-            ground[gi] = t_ground * prof.ground_albedo / np.pi * e_dir
+            albedo = prof.ground_albedo / np.pi
+            cos_g = np.maximum(mus_g, 0.0)[:, None]
+            # the directly lit ground through the true extinction (what orders=1 gives)
+            t_ground = np.exp(-step_tau[gi].sum(axis=1))  # (G, W)
+            e_dir = prof.solar_irradiance * self.sun_table.transmittance(np.zeros(gi.size), mus_g, which=0) * cos_g
+            ground[gi] = t_ground * albedo * e_dir
             if ms_on:
+                # the solver's ground light is seen through the delta-M scaled extinction,
+                # and so is the direct sun on the ground in the total: the difference to
+                # the true extinction goes with ``multiple`` as for the sky
+                t_ground_s = np.exp(-step_tau_s[gi].sum(axis=1))
+                e_dir_s = prof.solar_irradiance * self.sun_table.transmittance(
+                    np.zeros(gi.size), mus_g, which=2) * cos_g
                 e_diff = (self.field.ground_irradiance_at(mus_g) @ self.to_full) * prof.solar_irradiance
-                ms_ground[gi] = t_ground * prof.ground_albedo / np.pi * e_diff
-        multiple = ms_ground
+                ms_ground[gi] = t_ground_s * albedo * e_diff
+                rebalance[gi] += t_ground_s * albedo * e_dir_s - ground[gi]
+        multiple = ms_ground + rebalance
         if ms_on and self._aureole is not None:
             multiple = multiple + aureole
         if ms_on:
