@@ -166,17 +166,24 @@ def _location_names() -> tuple:
     return tuple(load_toml("presets/locations.toml")["locations"])
 
 
-def _aerosol_table() -> dict:
-    return load_toml("presets/aerosols/types.toml")
+#: The aerosol models' type files (their meaning: :mod:`skymodel.optics.aerosols`); the first is the default.
+_AEROSOL_MODEL_FILES = {"guimera2018": "presets/aerosols/paper.toml", "opac": "presets/aerosols/types.toml"}
 
 
 def _aerosol_names() -> tuple:
-    types = _aerosol_table()["types"]
-    return tuple(n for n, t in types.items() if t["regime"] == "troposphere") + ("none",)
+    """Tropospheric types of every aerosol model (each model checks its own)."""
+    names: list[str] = []
+    for f in _AEROSOL_MODEL_FILES.values():
+        names += [n for n, t in load_toml(f)["types"].items() if t["regime"] == "troposphere" and n not in names]
+    return tuple(names) + ("none",)
 
 
 def _aerosol_aliases() -> tuple:
-    return tuple(sorted(_aerosol_table().get("aliases", {}).items()))
+    al: dict[str, str] = {}
+    for f in _AEROSOL_MODEL_FILES.values():
+        for k, v in load_toml(f).get("aliases", {}).items():
+            al.setdefault(k, v)
+    return tuple(sorted(al.items()))
 
 
 def _surface_names() -> tuple:
@@ -213,12 +220,20 @@ _ALL = [
     _P("hour", "h", "hour of the day, UTC", default=12, minimum=0, maximum=23, integer=True),
     _P("minute", "min", "minute of the hour", default=0, minimum=0, maximum=59, integer=True),
     # ---- air
+    _P("site_altitude", "m", "height of the ground above sea level: the atmosphere starts there (Rayleigh "
+       "and ozone from the standard atmosphere at that height, aerosols from their ground concentration)",
+       minimum=0.0, maximum=8_000.0, flag="--site-altitude", default_note="the location's (0 without a preset)",
+       suggested=0.0, soft_maximum=5_000.0),
+    _P("aerosol_model", "", "aerosol model: guimera2018 = the paper's (Table 1 mixtures, Jaenicke sizes, "
+       "Eq. 12 profile), opac = OPAC mixtures (Hess et al. 1998)", default=tuple(_AEROSOL_MODEL_FILES)[0],
+       choices=tuple(_AEROSOL_MODEL_FILES), aliases=(("paper", "guimera2018"),), flag="--aerosol-model"),
     _P("aerosol", "", "tropospheric aerosol type, or none for clean air", choices=_aerosol_names(),
        aliases=_aerosol_aliases(), flag="--aerosol", default_note="the location's"),
     _P("aod550", "", "aerosol optical depth of the tropospheric aerosol at 550 nm (exclusive with turbidity)",
        minimum=0.0, maximum=10.0, flag="--aod550", default_note="the aerosol type's", suggested=0.2,
        soft_maximum=2.0),
-    _P("turbidity", "", "turbidity (tau_Rayleigh + tau_aerosol) / tau_Rayleigh at 550 nm", minimum=1.0,
+    _P("turbidity", "", "turbidity: Preetham et al.'s (1999) ratio (tau_Rayleigh + tau_aerosol) / "
+       "tau_Rayleigh at 550 nm (not the Linke turbidity factor)", minimum=1.0,
        maximum=64.0, flag="--turbidity", default_note="the aerosol type's", suggested=2.5, soft_maximum=10.0),
     _P("stratospheric", "", "stratospheric aerosol", default="background",
        choices=("background", "volcanic", "none"), flag="--stratospheric"),

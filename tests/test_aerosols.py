@@ -45,9 +45,10 @@ def test_type_and_component_lists():
 
 
 def test_every_type_names_known_components_and_a_source():
+    # the OPAC model (the paper's: tests/test_aerosols_paper.py)
     comps = set(aerosols.components())
-    for name in aerosols.aerosol_types() + ["stratospheric_background", "volcanic"]:
-        info = aerosols.type_info(name)
+    for name in aerosols.aerosol_types("opac") + ["stratospheric_background", "volcanic"]:
+        info = aerosols.type_info(name, model="opac")
         assert set(info["mixture"]) <= comps, name
         assert all(v > 0 for v in info["mixture"].values()), name
         assert info["mixture_source"] and info["profile"]["source"]
@@ -73,16 +74,18 @@ def test_lognormal_number_distribution_integrates_to_total():
 
 
 def test_vertical_profile_eq12():
+    # the OPAC model's form (v = 1, normalised at the ground, cut at 12 km); the paper's full Eq. 12:
+    # tests/test_aerosols_paper.py
     h = np.array([0.0, 730.0, 5000.0, 11999.0, 12001.0, 50000.0])
-    f = aerosols.vertical_profile("urban", h)
+    f = aerosols.vertical_profile("urban", h, model="opac")
     assert f[0] == pytest.approx(1.0)
     assert f[1] == pytest.approx(np.exp(-1.0), rel=1e-3)  # Hp = 0.73 km, tiny background term
     assert np.all(np.diff(f) <= 0) and f[4] == 0 and f[5] == 0
     # background: uniform up to the tropopause
-    fb = aerosols.vertical_profile("Background", h)
+    fb = aerosols.vertical_profile("Background", h, model="opac")
     assert np.allclose(fb[:4], 1.0) and fb[4] == 0
     # polar: 30 km scale height
-    assert aerosols.vertical_profile("polar_arctic", [10000.0])[0] == pytest.approx(np.exp(-1 / 3), rel=2e-3)
+    assert aerosols.vertical_profile("polar_arctic", [10000.0], model="opac")[0] == pytest.approx(np.exp(-1 / 3), rel=2e-3)
     # stratospheric layer: 1 at the peak, symmetric
     s = aerosols.vertical_profile("stratospheric_background", [16000.0, 20000.0, 24000.0])
     assert s[1] == pytest.approx(1.0) and s[0] == pytest.approx(s[2]) and s[0] == pytest.approx(np.exp(-0.5))
@@ -176,7 +179,9 @@ def test_turbidity_round_trip():
 
 
 def test_angstrom_fine_versus_coarse():
-    alpha = {n: aerosols.aerosol_optics(n, H, WL, stratospheric="none").angstrom_exponent for n in FINE + COARSE}
+    # the OPAC model's types (the paper's: tests/test_aerosols_paper.py)
+    alpha = {n: aerosols.aerosol_optics(n, H, WL, stratospheric="none", model="opac").angstrom_exponent
+             for n in FINE + COARSE}
     for fine in FINE:
         for coarse in COARSE:
             assert alpha[fine] > alpha[coarse] + 0.5, (fine, coarse, alpha)
@@ -189,7 +194,8 @@ def test_angstrom_fine_versus_coarse():
 
 
 def test_single_scattering_albedo():
-    ssa = {n: aerosols.aerosol_optics(n, H, WL, stratospheric="none").single_scattering_albedo[J550]
+    # the OPAC model's types (the paper's: tests/test_aerosols_paper.py)
+    ssa = {n: aerosols.aerosol_optics(n, H, WL, stratospheric="none", model="opac").single_scattering_albedo[J550]
            for n in ("maritime_clean", "urban", "rural", "polar_antarctic")}
     assert ssa["maritime_clean"] > 0.95
     assert ssa["polar_antarctic"] > 0.95  # sulfate
@@ -223,7 +229,7 @@ def test_case_insensitive_names_and_aliases():
     a = aerosols.aerosol_optics("URBAN", H, WL)
     b = aerosols.aerosol_optics("urban", H, WL)
     assert a.aerosol_type == "urban" and np.array_equal(a.scattering_by_regime, b.scattering_by_regime)
-    assert aerosols.resolve_type("Continental_Average") == "rural"
+    assert aerosols.resolve_type("Continental_Average", model="opac") == "rural"
     assert aerosols.resolve_type("Antarctic") == "polar_antarctic"
 
 

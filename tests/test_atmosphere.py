@@ -87,7 +87,7 @@ def test_no_aerosol_is_rayleigh_and_ozone_only():
     ({"ozone_du": 0.0}, "ozone_du"),
     ({"albedo": 1.5}, "albedo"),
     ({"stratospheric": "ash"}, "stratospheric"),
-    ({"location": None, "latitude": 10.0, "longitude": 10.0}, "location"),
+    ({"location": None, "latitude": 10.0}, "location"),  # a custom place needs both coordinates
 ])
 def test_bad_input_names_the_parameter(kwargs, parameter):
     base = {"location": "rural", "month": 6}

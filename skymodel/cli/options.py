@@ -105,7 +105,9 @@ def add_atmosphere_arguments(p: argparse.ArgumentParser) -> None:
     add_option(g, "latitude")
     add_option(g, "longitude")
     add_option(g, "month", default=None, note="with --time, the month of the date")
-    add_option(g, "aerosol")
+    add_option(g, "aerosol_model")
+    add_option(g, "aerosol", note="without --location, chosen from --lat/--lon by the location rule")
+    add_option(g, "site_altitude")
     add_option(g, "aod550")
     add_option(g, "turbidity")
     add_option(g, "stratospheric")
@@ -121,18 +123,23 @@ def atmosphere_from_args(args):
     from skymodel.optics.atmosphere import Atmosphere
 
     location = args.location
-    if location is None and (args.latitude is None or args.longitude is None or args.aerosol is None):
+    if location is None and (args.latitude is None or args.longitude is None):
         location = scene.default("location")
     month, day = args.month, None
     if month is None and getattr(args, "time_utc", None) is not None:
         iso = scene.resolve_time(args.time_utc, getattr(args, "timezone", None)).utc_iso
         month, day = scene.month_of(iso), scene.day_of_year(iso)
-    return Atmosphere(
+    atm = Atmosphere(
         location=location, month=month or scene.default("month"), day_of_year=day,
         latitude=args.latitude, longitude=args.longitude, aerosol=args.aerosol,
         aod550=args.aod550, turbidity=args.turbidity, stratospheric=args.stratospheric,
         ozone_du=args.ozone_du, albedo=args.albedo, n_altitudes=args.n_altitudes,
+        aerosol_model=getattr(args, "aerosol_model", scene.default("aerosol_model")),
+        site_altitude_m=getattr(args, "site_altitude", None),
     )
+    for rule in atm.location_rules:  # which rule chose the aerosol type and the surface
+        print(f"skymodel: {rule}", file=sys.stderr)
+    return atm
 
 
 def add_sun_arguments(p: argparse.ArgumentParser, observer: bool = True) -> None:

@@ -75,7 +75,8 @@ def profile_summary(profile, layers: int | None = None) -> dict:
 def _print_profile_table(s: dict) -> None:
     a = s["atmosphere"]
     print(f"location {a['location']}  lat {a['latitude_deg']:.2f}  lon {a['longitude_deg']:.2f}  month {a['month']}")
-    print(f"aerosol {a['aerosol']} (stratospheric {a['stratospheric']})  AOD550 {a['aod550']:.4f}  "
+    print(f"aerosol {a['aerosol']} ({a['aerosol_model']} model; stratospheric {a['stratospheric']})  "
+          f"site {a['site_altitude_m']:.0f} m  AOD550 {a['aod550']:.4f}  "
           f"Angstrom {a['angstrom_exponent']:.3f}  ozone {a['ozone_du']:.1f} DU  albedo {a['albedo']:.2f}")
     print(f"{'nm':>6} {'tau_R':>9} {'tau_O3':>9} {'tau_aer':>9} {'ssa':>6} {'g':>6}")
     for i, wl in enumerate(s["wavelengths_nm"]):

@@ -49,7 +49,8 @@ class Atmosphere:
     Parameters
     ----------
     location : name of a preset in ``skymodel/data/presets/locations.toml`` (``skymodel presets``
-        lists them), or None when ``latitude``/``longitude`` and ``aerosol`` are given.
+        lists them), or None: with ``latitude``/``longitude`` the place is custom (aerosol type
+        and surface from the location rule unless given), without them the registry's default.
     month : 1..12, selects the ozone climatology (and nothing else: aerosol types carry
         no seasonal cycle in the sources).
     day_of_year : 1..366 (1 = 1 January), or None; when given, the ozone climatology of
@@ -66,10 +67,21 @@ class Atmosphere:
     ozone_du : total ozone column in Dobson units (default: the monthly climatology at
         the latitude).
     albedo : ground albedo 0..1 (default: the location's surface); or ``surface`` name.
-    n_altitudes : points of the altitude grid (0..100 km, denser near the ground).
+    n_altitudes : points of the altitude grid (ground to 100 km above sea level, denser near the ground).
+    aerosol_model : ``"guimera2018"`` (the paper's Table 1 mixtures, the default) or ``"opac"``
+        (:data:`skymodel.optics.aerosols.MODELS`).
+    site_altitude_m : height of the ground above sea level [m]: the atmosphere starts there
+        (molecules and ozone of the standard atmosphere above that height, so the Rayleigh depth
+        is the sea-level one times p(site)/p0; aerosols at their ground concentration at the site).
+        Heights in the profile stay heights above the ground; the observer's height above the
+        ground is the renderer's ``observer_altitude``.
+
+    Without ``location``, given ``latitude`` and ``longitude``, the aerosol type and the ground
+    surface that are not given are chosen by :func:`skymodel.optics.location_rule.choose`
+    (polar bands, land mask, deserts); :attr:`location_rules` says which rule chose what.
     """
 
-    location: str | None = scene.default("location")
+    location: str | None = None  # the registry's default location unless latitude and longitude are given
     month: int = scene.default("month")
     day_of_year: float | None = scene.default("day_of_year")
     latitude: float | None = scene.default("latitude")
@@ -84,6 +96,9 @@ class Atmosphere:
     surface: str | None = scene.default("surface")
     n_altitudes: int = scene.default("n_altitudes")
     co2_ppm: float = rayleigh.DEFAULT_CO2_PPM
+    aerosol_model: str = scene.default("aerosol_model")
+    site_altitude_m: float | None = scene.default("site_altitude")  # None: the location's (0 without a preset)
+    location_rules: tuple = ()
 
     def __post_init__(self):
         set_ = functools.partial(object.__setattr__, self)
@@ -92,20 +107,37 @@ class Atmosphere:
         set_("month", scene.check("month", self.month))
         set_("day_of_year", scene.check("day_of_year", self.day_of_year))
         preset = {}
+        if self.location is None and self.latitude is None and self.longitude is None:
+            set_("location", scene.default("location"))
         if self.location is not None:
             name = scene.check("location", self.location)
             set_("location", name)
             preset = locations()[name]
-        elif self.latitude is None or self.longitude is None or self.aerosol is None:
-            raise SkymodelInputError(
-                "location", None, "a preset name, or latitude, longitude and an explicit aerosol type"
-            )
+        elif self.latitude is None or self.longitude is None:
+            raise SkymodelInputError("location", None, "a preset name, or a latitude and a longitude")
+        else:
+            from skymodel.optics import location_rule
+
+            choice = location_rule.choose(scene.check("latitude", self.latitude),
+                                          scene.check("longitude", self.longitude))
+            preset = {"aerosol": choice.aerosol, "surface": choice.surface}
+            rules = []
+            if self.aerosol is None:
+                rules.append(f"aerosol {choice.aerosol}: {choice.aerosol_rule}")
+            if self.albedo is None and self.surface is None:
+                rules.append(f"surface {choice.surface}: {choice.surface_rule}")
+            set_("location_rules", tuple(rules))
+        set_("aerosol_model", scene.check("aerosol_model", self.aerosol_model))
+        site = preset.get("site_altitude_m", 0.0) if self.site_altitude_m is None else self.site_altitude_m
+        set_("site_altitude_m", scene.check("site_altitude", site))
         lat = preset.get("latitude") if self.latitude is None else self.latitude
         lon = preset.get("longitude", 0.0) if self.longitude is None else self.longitude
         set_("latitude", scene.parameter("latitude").check(lat))
         set_("longitude", scene.parameter("longitude").check(lon))
         aer = self.aerosol if self.aerosol is not None else preset.get("aerosol", "continental")
         set_("aerosol", scene.check("aerosol", aer))  # aliases (desert_dust) give the canonical name
+        if self.aerosol != "none":  # the type must exist in the chosen model
+            set_("aerosol", aerosols.resolve_type(self.aerosol, "aerosol", model=self.aerosol_model))
         set_("stratospheric", scene.check("stratospheric", self.stratospheric))
         if self.aod550 is not None and self.turbidity is not None:
             raise SkymodelInputError("aod550", self.aod550, "either aod550 or turbidity, not both")
@@ -121,7 +153,8 @@ class Atmosphere:
     # ------------------------------------------------------------------ derived
     @property
     def altitudes_m(self) -> np.ndarray:
-        return altitude_grid(int(self.n_altitudes), TOA_ALTITUDE_M)
+        """Heights above the ground [m], from the ground (at ``site_altitude_m``) to 100 km above sea level."""
+        return altitude_grid(int(self.n_altitudes), TOA_ALTITUDE_M - self.site_altitude_m)
 
     def optical_profile(self, wavelengths_nm=None) -> OpticalProfile:
         """Per-height optical properties on ``wavelengths_nm`` (default 380–780 nm, 5 nm)."""
@@ -132,15 +165,16 @@ class Atmosphere:
 def _build_profile(atm: Atmosphere, wavelengths: tuple) -> OpticalProfile:
     wl = np.asarray(wavelengths, dtype=float)
     h = atm.altitudes_m
-    ray = rayleigh.scattering_coefficient(h, wl, atm.co2_ppm)
-    o3_density = ozone.ozone_number_density(h, atm.month, atm.latitude, total_column_du=atm.ozone_du,
+    z = h + atm.site_altitude_m  # heights above sea level, for the standard atmosphere and ozone
+    ray = rayleigh.scattering_coefficient(z, wl, atm.co2_ppm)
+    o3_density = ozone.ozone_number_density(z, atm.month, atm.latitude, total_column_du=atm.ozone_du,
                                             day_of_year=atm.day_of_year)
     o3 = o3_density[:, None] * ozone.ozone_cross_section(wl)[None, :]
-    tau_r550 = float(rayleigh.optical_depth([550.0], atm.co2_ppm, h)[0])
+    tau_r550 = float(rayleigh.optical_depth([550.0], atm.co2_ppm, z)[0])
     aer = aerosols.aerosol_optics(
         atm.aerosol, h, wl, aod550=atm.aod550, turbidity=atm.turbidity,
         stratospheric=atm.stratospheric, stratospheric_aod550=atm.stratospheric_aod550,
-        rayleigh_optical_depth_550=tau_r550,
+        rayleigh_optical_depth_550=tau_r550, model=atm.aerosol_model,
     )
     meta = {
         "location": atm.location,
@@ -149,10 +183,13 @@ def _build_profile(atm: Atmosphere, wavelengths: tuple) -> OpticalProfile:
         "month": atm.month,
         "day_of_year": atm.day_of_year,
         "aerosol": atm.aerosol,
+        "aerosol_model": atm.aerosol_model,
+        "site_altitude_m": float(atm.site_altitude_m),
+        "location_rules": list(atm.location_rules),
         "stratospheric": atm.stratospheric,
         "aod550": float(aer.aod550),
         "angstrom_exponent": float(aer.angstrom_exponent),
-        "ozone_du": float(ozone.ozone_column_du(h, o3_density)),
+        "ozone_du": float(ozone.ozone_column_du(z, o3_density)),
         "albedo": float(atm.albedo),
         "surface": atm.surface,
         "rayleigh_optical_depth_550": tau_r550,
@@ -164,8 +201,8 @@ def _build_profile(atm: Atmosphere, wavelengths: tuple) -> OpticalProfile:
         aerosol_phase=np.asarray(aer.phase, dtype=float),
         ground_albedo=ground.albedo_spectrum(atm.albedo, wl),
         solar_irradiance=sun.solar_irradiance(wl),
-        planet_radius_m=EARTH_RADIUS_M,
-        top_altitude_m=TOA_ALTITUDE_M,
+        planet_radius_m=EARTH_RADIUS_M + atm.site_altitude_m,
+        top_altitude_m=TOA_ALTITUDE_M - atm.site_altitude_m,
         metadata=meta,
         altitudes_m=h,
         rayleigh_scattering=ray,
