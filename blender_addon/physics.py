@@ -91,6 +91,8 @@ class SkyParams:
     ozone_du: float | None = None
     albedo: float | None = None
     observer_altitude_m: float = scene.default("observer_altitude")
+    aerosol_model: str = scene.default("aerosol_model")
+    site_altitude_m: float | None = scene.default("site_altitude")
     quality: str = scene.default("quality")
     image_width: int = scene.default("environment_width")
     mode: str = "ENVIRONMENT"
@@ -144,7 +146,10 @@ def resolve(params: SkyParams) -> ResolvedSky:
     month = p.month if p.time_utc is None else scene.month_of(p.time_utc)
     atm = Atmosphere(location=p.location, month=month, latitude=p.latitude_deg, longitude=p.longitude_deg,
                      aerosol=p.aerosol, aod550=p.aod550, turbidity=p.turbidity, stratospheric=p.stratospheric,
-                     ozone_du=p.ozone_du, albedo=p.albedo)
+                     ozone_du=p.ozone_du, albedo=p.albedo, aerosol_model=p.aerosol_model,
+                     site_altitude_m=p.site_altitude_m)
+    for rule in atm.location_rules:  # a custom place: which rule chose the aerosol type and the ground
+        print(f"skymodel: {rule}")
     if p.time_utc is not None:  # the date places the sun; the angle fields are not used
         sun = scene.place_sun(atm.latitude, atm.longitude, p.time_utc)
     else:

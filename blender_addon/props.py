@@ -74,6 +74,26 @@ def _quality_items() -> list[tuple]:
              f"{q.wavelength_step_nm:g} nm: {q.purpose}") for name, q in QUALITIES.items()]
 
 
+def _aerosol_model_items() -> list[tuple]:
+    """The aerosol models (the registry's choices); each tooltip lists every type's components
+    with their fractions (:func:`skymodel.optics.aerosols.type_composition`)."""
+    from skymodel.optics.aerosols import type_composition
+
+    labels = {"guimera2018": "Paper (Guimera 2018)", "opac": "OPAC"}
+    items = []
+    for name in scene.parameter("aerosol_model").choices:
+        comp = type_composition(name)
+        parts = []
+        for t, c in comp.items():
+            fr = ", ".join(f"{k} {v.get('table1_fraction', v.get('number_fraction', 0.0)):.3g}"
+                           for k, v in c["components"].items())
+            parts.append(f"{t}: {fr}")
+        text = ("Table 1 proportions by number, Jaenicke sizes, Eq. 12 profile. " if name == "guimera2018"
+                else "OPAC mixtures (Hess et al. 1998), number fractions. ")
+        items.append((name, labels.get(name, name), text + "; ".join(parts)))
+    return items
+
+
 def _stratospheric_items() -> list[tuple]:
     return [(c, *_STRATOSPHERIC_LABELS.get(c, (c.title(), c))) for c in scene.parameter("stratospheric").choices]
 
@@ -94,6 +114,8 @@ REGISTRY_PROPERTIES = {
     "aod550": ("aod550", "AOD 550 nm", {"precision": 3}),
     "turbidity": ("turbidity", "Turbidity", {"precision": 2}),
     "stratospheric": ("stratospheric", "Stratosphere", {"items": _stratospheric_items}),
+    "aerosol_model": ("aerosol_model", "Aerosol Model", {"items": _aerosol_model_items}),
+    "site_altitude": ("site_altitude", "Site Altitude", {"subtype": 'DISTANCE', "unit": 'LENGTH'}),
     "ozone_du": ("ozone_du", "Ozone", {"precision": 1}),
     "albedo": ("albedo", "Albedo", {"subtype": 'FACTOR'}),
     "observer_altitude": ("observer_altitude", "Observer Altitude", {"subtype": 'DISTANCE', "unit": 'LENGTH'}),
@@ -161,7 +183,8 @@ class SkymodelSettings(bpy.types.PropertyGroup):
     location_source: EnumProperty(
         name="Location", description="A named location preset, or a latitude/longitude of your own",
         items=[("PRESET", "Preset", "A named location (sets latitude, longitude, aerosol type and ground)"),
-               ("CUSTOM", "Custom", "Your own latitude and longitude (choose an aerosol type too)")],
+               ("CUSTOM", "Custom", "Your own latitude and longitude: with Aerosol 'location' the aerosol type and the ground come from the "
+                "location rule (polar bands, land/sea mask, deserts; the console prints the rule)")],
         default="PRESET")
     location: registry_property("location")
     latitude: registry_property("latitude")
@@ -192,6 +215,8 @@ class SkymodelSettings(bpy.types.PropertyGroup):
     aod550: registry_property("aod550")
     turbidity: registry_property("turbidity")
     stratospheric: registry_property("stratospheric")
+    aerosol_model: registry_property("aerosol_model")
+    site_altitude: registry_property("site_altitude")
     use_ozone: BoolProperty(name="Override Ozone", description="Give the total ozone column yourself",
                             default=False)
     ozone_du: registry_property("ozone_du")
@@ -281,6 +306,8 @@ class SkymodelSettings(bpy.types.PropertyGroup):
             ozone_du=float(self.ozone_du) if self.use_ozone else None,
             albedo=float(self.albedo) if self.use_albedo else None,
             observer_altitude_m=float(self.observer_altitude),
+            aerosol_model=self.aerosol_model,
+            site_altitude_m=None if preset else float(self.site_altitude),
             quality=self.quality,
             image_width=int(self.image_width),
             mode=self.mode,

@@ -23,6 +23,7 @@ def draw_settings(layout, context):
     else:
         col.prop(s, "latitude")
         col.prop(s, "longitude")
+        col.prop(s, "site_altitude")
 
     col = layout.column(align=True)
     col.prop(s, "sun_source", expand=True)
@@ -38,6 +39,7 @@ def draw_settings(layout, context):
         col.prop(s, "sun_azimuth")
 
     col = layout.column(align=True)
+    col.prop(s, "aerosol_model")
     col.prop(s, "aerosol")
     col.prop(s, "aerosol_amount")
     if s.aerosol_amount == "AOD":

@@ -184,10 +184,23 @@ def test_properties_units_and_ranges(scene):
 # ------------------------------------------------------------------ input errors
 
 
+def test_custom_place_takes_the_location_rule_and_the_site_altitude(scene):
+    # a custom latitude/longitude with the aerosol left at "location": the location rule chooses
+    # (-85, 0: the Antarctic type over snow); the site altitude and the aerosol model reach the core
+    from blender_addon import physics
+
+    s = settings(scene)
+    s.location_source, s.aerosol = "CUSTOM", "location"
+    s.latitude, s.longitude = math.radians(-85.0), 0.0
+    s.site_altitude, s.aerosol_model = 2835.0, "opac"
+    atm = physics.resolve(s.to_params()).atmosphere
+    assert (atm.aerosol, atm.surface, atm.aerosol_model) == ("polar_antarctic", "snow", "opac")
+    assert atm.site_altitude_m == pytest.approx(2835.0) and atm.location_rules
+
+
 @pytest.mark.parametrize("change, parameter", [
     ({"location": "atlantis"}, "location"),
     ({"aerosol": "smog"}, "aerosol"),
-    ({"location_source": "CUSTOM", "aerosol": "location"}, "location"),
     ({"sun_source": "TIME", "year": 2026, "month": 2, "day": 30}, "day"),
     ({"sun_source": "TIME", "year": 2026, "month": 6, "day": 21, "hour": 0, "minute": 0}, "time_utc"),  # night
 ])

@@ -88,6 +88,18 @@ def test_every_preset_value_carries_a_source():
     for name, loc in locations().items():
         if "site_altitude_m" in loc:
             assert loc["site_altitude_source"], name
+        if "aod550" in loc:
+            assert loc["aod550_source"], name
+
+
+def test_a_preset_measured_amount_applies_to_its_own_type_only():
+    # Mauna Loa: Jaenicke's free-troposphere table amount (AOD550 ~2.8) is far from the measured
+    # clean sky; the preset's aod550 applies when its type is used and nothing else sets the amount
+    assert aerosols.default_aod550("background") > 1.0
+    assert Atmosphere(location="mauna_loa").optical_profile([550.0]).metadata["aod550"] == pytest.approx(0.02)
+    assert Atmosphere(location="mauna_loa", turbidity=2.0).aod550 is None
+    assert Atmosphere(location="mauna_loa", aerosol="urban").aod550 is None
+    assert Atmosphere(location="mauna_loa", aod550=0.1).aod550 == 0.1
 
 
 def test_polar_widths_resolved():
@@ -290,8 +302,12 @@ def test_site_altitude_rayleigh_depth_scales_with_pressure():
     assert ml.planet_radius_m == pytest.approx(sea.planet_radius_m + 3397.0)
     assert ml.top_altitude_m == pytest.approx(sea.top_altitude_m - 3397.0)
     assert ml.altitudes_m[0] == 0.0
-    # aerosols at their ground concentration at the site
-    assert ml.aerosol_scattering_by_regime[0, 0] == pytest.approx(sea.aerosol_scattering_by_regime[0, 0], rel=1e-9)
+    # aerosols at their ground concentration at the site (a type's table amount; Mauna Loa's own is
+    # a measured AOD, which the column sets)
+    a_sea, a_ml = (Atmosphere(location="mauna_loa", aerosol="rural", site_altitude_m=s).optical_profile([550.0])
+                   for s in (0.0, None))
+    assert a_ml.aerosol_scattering_by_regime[0, 0] == pytest.approx(a_sea.aerosol_scattering_by_regime[0, 0],
+                                                                    rel=1e-9)
 
 
 def test_site_altitude_is_checked_and_explicit_wins():

@@ -101,7 +101,8 @@ def add_option(parser, name: str, *, flag: str | None = None, default=REGISTRY, 
 def add_atmosphere_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by every command that builds an atmosphere."""
     g = p.add_argument_group("atmosphere")
-    add_option(g, "location", default=None, note="custom: give --lat, --lon and --aerosol instead")
+    add_option(g, "location", default=None, note="custom: give --lat and --lon instead (the location rule chooses the aerosol type and ground "
+               "unless --aerosol / --albedo are given, and says which rule chose them)")
     add_option(g, "latitude")
     add_option(g, "longitude")
     add_option(g, "month", default=None, note="with --time, the month of the date")

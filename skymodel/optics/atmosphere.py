@@ -59,9 +59,10 @@ class Atmosphere:
     latitude, longitude : degrees (north, east positive); override the preset's.
     aerosol : tropospheric aerosol type (``skymodel presets``) or ``"none"``, aliases
         accepted (``"desert_dust"`` is ``"desert"``); default the location's.
-    aod550 : aerosol optical depth at 550 nm of the tropospheric aerosol (0..10); default:
+    aod550 : aerosol optical depth at 550 nm of the tropospheric aerosol (0..10); default: the
+        preset's measured ``aod550`` when it has one and its aerosol type is used (Mauna Loa), else
         what the type's number densities give. Exclusive with ``turbidity``.
-    turbidity : (tau_Rayleigh + tau_aerosol) / tau_Rayleigh at 550 nm (1..64).
+    turbidity : Preetham et al.'s (1999) (tau_Rayleigh + tau_aerosol) / tau_Rayleigh at 550 nm (1..64).
     stratospheric : ``"background"``, ``"volcanic"`` or ``"none"``.
     stratospheric_aod550 : optical depth of the stratospheric aerosol at 550 nm.
     ozone_du : total ozone column in Dobson units (default: the monthly climatology at
@@ -134,6 +135,7 @@ class Atmosphere:
         lon = preset.get("longitude", 0.0) if self.longitude is None else self.longitude
         set_("latitude", scene.parameter("latitude").check(lat))
         set_("longitude", scene.parameter("longitude").check(lon))
+        aer_from_preset = self.aerosol is None
         aer = self.aerosol if self.aerosol is not None else preset.get("aerosol", "continental")
         set_("aerosol", scene.check("aerosol", aer))  # aliases (desert_dust) give the canonical name
         if self.aerosol != "none":  # the type must exist in the chosen model
@@ -141,6 +143,9 @@ class Atmosphere:
         set_("stratospheric", scene.check("stratospheric", self.stratospheric))
         if self.aod550 is not None and self.turbidity is not None:
             raise SkymodelInputError("aod550", self.aod550, "either aod550 or turbidity, not both")
+        if (self.aod550 is None and self.turbidity is None and aer_from_preset and "aod550" in preset
+                and self.aerosol != "none"):
+            set_("aod550", float(preset["aod550"]))  # a measured amount of the place (its type's table amount is not)
         for name in ("aod550", "turbidity", "stratospheric_aod550", "ozone_du", "albedo"):
             set_(name, scene.check(name, getattr(self, name)))
         if self.albedo is None:
