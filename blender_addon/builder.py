@@ -419,7 +419,46 @@ def film_exposure(settings, result) -> float:
     return base + float(getattr(settings, "exposure_offset", 0.0))
 
 
-def load_image(tx: Transaction, path: str, pack: bool):
+#: Folder beside the .blend that holds the sky images of ``image_storage = "BESIDE"``.
+BESIDE_FOLDER = "skymodel_sky"
+
+
+def _copy_beside_blend(tx: Transaction, path: str) -> str | None:
+    """Copy the cached EXR into :data:`BESIDE_FOLDER` next to the saved .blend; returns the
+    Blender-relative path (``//skymodel_sky/<name>``), or None when the file is unsaved. A copy
+    this build made is deleted again if the build fails."""
+    import os
+    import shutil
+
+    blend = bpy.data.filepath
+    if not blend:
+        return None
+    folder = os.path.join(os.path.dirname(blend), BESIDE_FOLDER)
+    os.makedirs(folder, exist_ok=True)
+    dest = os.path.join(folder, os.path.basename(path))
+    if not os.path.exists(dest):
+        tmp = dest + ".part"
+        shutil.copyfile(path, tmp)
+        os.replace(tmp, dest)
+        tx.undo.append(lambda d=dest: os.remove(d) if os.path.exists(d) else None)
+    return "//" + BESIDE_FOLDER + "/" + os.path.basename(path)
+
+
+def load_image(tx: Transaction, path: str, storage="PACK"):
+    """Load the sky EXR as ``Skymodel Sky`` and keep it where ``storage`` says: ``"PACK"``
+    (packed into the .blend, the default), ``"BESIDE"`` (a copy beside the saved .blend, by
+    a relative path; packed when the file has not been saved yet). ``True`` / ``False`` are
+    read as ``"PACK"`` / linked to ``path`` as it is (tests only). Returns the image and where
+    it went (``"packed"``, ``"beside"``, ``"linked"``)."""
+    if storage is True:
+        storage = "PACK"
+    where = "linked"
+    if storage == "BESIDE":
+        rel = _copy_beside_blend(tx, path)
+        if rel is not None:
+            path, where = bpy.path.abspath(rel), "beside"
+        else:
+            storage = "PACK"
     img = bpy.data.images.load(path, check_existing=False)
     tx.adopt("images", img)
     img.name = "Skymodel Sky"
@@ -430,8 +469,12 @@ def load_image(tx: Transaction, path: str, pack: bool):
         img.colorspace_settings.name = "scene_linear"
     if tuple(img.size) == (0, 0):
         raise RuntimeError(f"could not read the sky image {path}")
-    if pack:
+    if where == "beside":
+        img.filepath = bpy.path.relpath(path)
+    if storage == "PACK":
         img.pack()
+        where = "packed"
+    img["skymodel_storage"] = where
     return img
 
 
@@ -477,7 +520,9 @@ def apply_environment(scene, world, settings, result, progress=None):
         if sky_texture:
             _sky_texture_nodes(tx, world, sky_texture)
         else:
-            _environment_nodes(tx, world, load_image(tx, result.image_path, settings.pack_image))
+            img = load_image(tx, result.image_path, settings.image_storage)
+            result.info["image_storage"] = img["skymodel_storage"]
+            _environment_nodes(tx, world, img)
 
     return build(scene, world, settings, result, world_nodes)
 
@@ -516,6 +561,11 @@ def _write_info(tx: Transaction, settings, result):
         lines.append(f"Built in {info['total_s']:.1f} s" + (" (cached image)" if result.cache_hit else ""))
     if "sky_model" in info:
         lines.append(f"Model {info['sky_model']}")
+    if info.get("image_storage"):
+        lines.append({"packed": "Sky image packed into the .blend",
+                      "beside": f"Sky image in //{BESIDE_FOLDER}/",
+                      "linked": "Sky image linked to the cache"}.get(info["image_storage"], ""))
+    lines.extend(str(w) for w in info.get("warnings", ()))
     tx.set(settings, "last_build", stamp)
     tx.set(settings, "last_info", " | ".join(lines))
 

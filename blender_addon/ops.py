@@ -38,8 +38,13 @@ class Progress:
 
 
 def cache_dir() -> Path:
-    """``$SKYMODEL_CACHE_DIR``; else the extension's user folder (``.../extensions/.user/
-    <repo>/skymodel/cache``); else ``<tmp>/skymodel-cache`` (add-on run from a checkout)."""
+    """Where rendered skies are cached: ``$SKYMODEL_CACHE_DIR``; else, installed as an
+    extension, its user folder (``bpy.utils.extension_path_user(__package__, path="cache")``:
+    ``.../extensions/.user/<repo>/skymodel/cache``, which survives updating or reinstalling
+    the extension, unlike the extension's own folder); else (an add-on run from a checkout)
+    Blender's user data folder (``bpy.utils.user_resource("DATAFILES", path="skymodel/cache")``).
+    Nothing a .blend needs lives only here: the sky image is packed into the .blend or
+    copied beside it (``image_storage``), so the cache can be cleared at any time."""
     env = os.environ.get("SKYMODEL_CACHE_DIR")
     if env:
         return Path(env)
@@ -49,7 +54,10 @@ def cache_dir() -> Path:
             return Path(bpy.utils.extension_path_user(pkg, path="cache", create=True))
         except (ValueError, RuntimeError, OSError):
             pass
-    return physics.default_cache_dir()
+    try:
+        return Path(bpy.utils.user_resource("DATAFILES", path="skymodel/cache", create=True))
+    except (ValueError, RuntimeError, OSError):
+        return physics.default_cache_dir()
 
 
 def build(context, settings=None, progress=None):
@@ -136,7 +144,49 @@ class SKYMODEL_OT_remove_sky(bpy.types.Operator):
         return {"FINISHED"}
 
 
-CLASSES = (SKYMODEL_OT_build_sky, SKYMODEL_OT_remove_sky)
+def _in_folder(path: str, folder: Path) -> bool:
+    try:
+        return Path(bpy.path.abspath(path)).resolve().parent == folder.resolve()
+    except (OSError, ValueError):
+        return False
+
+
+def clear_cache() -> dict:
+    """Empty the add-on's cache folder (:func:`cache_dir`). An open image still read from
+    the cache (a .blend built before images were packed by default) is packed first, so
+    the scene keeps its sky. Returns ``{"files", "bytes", "packed", "folder"}``."""
+    from skymodel.render.environment import clear_cache as clear_folder
+
+    folder = cache_dir()
+    packed = 0
+    for img in bpy.data.images:
+        if img.packed_file is None and img.source == "FILE" and _in_folder(img.filepath, folder):
+            try:
+                img.pack()
+                packed += 1
+            except RuntimeError as ex:
+                print(f"[skymodel] could not pack {img.name}: {ex}")
+    n, size = clear_folder(folder) if folder.is_dir() else (0, 0)
+    return {"files": n, "bytes": size, "packed": packed, "folder": str(folder)}
+
+
+class SKYMODEL_OT_clear_cache(bpy.types.Operator):
+    """Delete the rendered skies the add-on keeps in its cache folder (scenes keep their packed or saved images)"""
+
+    bl_idname = "skymodel.clear_cache"
+    bl_label = "Clear Sky Cache"
+    bl_options = {"REGISTER"}
+
+    def execute(self, context):
+        r = clear_cache()
+        text = f"Skymodel: cache cleared, {r['files']} files, {r['bytes'] / 1e6:.1f} MB freed ({r['folder']})"
+        if r["packed"]:
+            text += f"; {r['packed']} image(s) still read from the cache were packed into the .blend first"
+        self.report({"INFO"}, text)
+        return {"FINISHED"}
+
+
+CLASSES = (SKYMODEL_OT_build_sky, SKYMODEL_OT_remove_sky, SKYMODEL_OT_clear_cache)
 
 
 register, unregister = bpy.utils.register_classes_factory(CLASSES)

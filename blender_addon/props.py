@@ -268,8 +268,13 @@ class SkymodelSettings(bpy.types.PropertyGroup):
     override_aerial_perspective: EnumProperty(name="Volume Shells", items=_OVERRIDE_ITEMS, default="AUTO")
     override_n_layers: IntProperty(name="Shell Layers", description="Volume layers in Auto mode (0: the planner's)",
                                    min=0, max=scene.parameter("volume_layers").maximum, default=0)
-    pack_image: BoolProperty(name="Pack Image", description="Pack the sky image into the .blend file",
-                             default=False)
+    image_storage: EnumProperty(
+        name="Sky Image", description="Where the Environment image is kept, so the .blend opens with its sky "
+        "wherever it goes (the add-on's cache can be cleared at any time)",
+        items=[("PACK", "Pack into .blend", "Pack the image into the .blend file (self-contained)"),
+               ("BESIDE", "Save beside .blend", "Copy the image into a 'skymodel_sky' folder next to the saved "
+                ".blend and link it by a relative path (an unsaved file packs it instead)")],
+        default="PACK")
     set_exposure: BoolProperty(name="Set Exposure", description="Set the view transform (AgX) and the "
                                "exposure from the sky's illuminance", default=True)
     exposure_rule: EnumProperty(

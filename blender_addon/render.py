@@ -18,7 +18,8 @@ the sky (Build Sky with the given settings) and an equirectangular panoramic cam
 transform (AgX and the add-on's exposure); ``--exr`` also writes the scene-linear image.
 Exit status 0 on success, 2 for bad input (the message names the option and the value as
 typed, checked before Blender does any work: out of range is refused, never clamped; the
-documented bounds such as ``--lat 90`` are accepted), 1 otherwise.
+documented bounds such as ``--lat 90`` are accepted), 130 when interrupted (Ctrl+C: one line,
+no traceback), 1 otherwise.
 """
 
 from __future__ import annotations
@@ -271,6 +272,12 @@ def main(argv=None) -> int:
     except SkymodelInputError as ex:
         print(f"skymodel: error: {ex}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl+C: one line, no traceback (the build rolled back)
+        print("skymodel: interrupted", file=sys.stderr)
+        return 130
+    except OSError as ex:
+        print(f"skymodel: error: {ex}", file=sys.stderr)
+        return 1
     print(f"[skymodel] wrote {out} in {time.perf_counter() - t0:.1f} s")
     return 0
 

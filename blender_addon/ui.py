@@ -65,7 +65,7 @@ def draw_settings(layout, context):
         col.prop(s, "sky_model")
         col.prop(s, "image_width")
         col.prop(s, "observer_altitude")
-        col.prop(s, "pack_image")
+        col.prop(s, "image_storage")
     if s.mode != "ENVIRONMENT":
         if s.mode == "VOLUMETRIC":
             col.prop(s, "n_layers")
@@ -81,6 +81,7 @@ def draw_settings(layout, context):
     row.scale_y = 1.4
     row.operator("skymodel.build_sky", icon="WORLD")
     row.operator("skymodel.remove_sky", text="", icon="TRASH")
+    row.operator("skymodel.clear_cache", text="", icon="FILE_CACHE")
 
     box = layout.box()
     if s.last_build:

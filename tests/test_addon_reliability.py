@@ -245,3 +245,107 @@ def test_exposure_offset_and_rule_add_to_the_build(scene):
     s.exposure_rule = "INCIDENT"
     assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
     assert scene.view_settings.exposure > base + 2.0  # the incident rule is 2-3 EV brighter at -2 degrees
+
+
+# ------------------------------------------------------------------ 4. the sky survives its cache
+
+
+def _pixels(img):
+    px = np.empty(img.size[0] * img.size[1] * img.channels, np.float32)
+    img.pixels.foreach_get(px)
+    return px
+
+
+def test_reopened_blend_without_the_cache_has_the_same_sky(scene, tmp_path):
+    """Packed by default: save, clear the cache, reopen: the same pixels (no magenta)."""
+    from blender_addon import ops
+
+    s = scene.world.skymodel
+    assert s.image_storage == "PACK"
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    img = bpy.data.images["Skymodel Sky"]
+    assert img.packed_file is not None
+    before = _pixels(img)
+    blend = str(tmp_path / "sunset.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    assert bpy.ops.skymodel.clear_cache() == {"FINISHED"}
+    assert not list(ops.cache_dir().glob("sky-*"))
+    bpy.ops.wm.open_mainfile(filepath=blend)
+    img = bpy.data.images["Skymodel Sky"]
+    assert img.has_data or img.size[0] > 0
+    np.testing.assert_array_equal(_pixels(img), before)
+
+
+def test_image_saved_beside_the_blend(scene, tmp_path):
+    from blender_addon import builder, ops
+
+    s = scene.world.skymodel
+    s.image_storage = "BESIDE"
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "beside.blend"))
+    sc = bpy.context.scene
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    img = bpy.data.images["Skymodel Sky"]
+    assert img.packed_file is None and img.filepath.startswith("//" + builder.BESIDE_FOLDER + "/")
+    assert (tmp_path / builder.BESIDE_FOLDER / img.filepath.split("/")[-1]).is_file()
+    assert builder.BESIDE_FOLDER in sc.world.skymodel.last_info
+    ops.clear_cache()  # the copy beside the .blend stays
+    img.reload()
+    assert img.size[0] == 64
+
+
+def test_corrupt_cached_exr_is_detected_and_rebuilt(scene):
+    from blender_addon import ops
+
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    exr = next(ops.cache_dir().glob("sky-*.exr"))
+    good = exr.read_bytes()
+    ctx = _Ctx(scene)
+    assert ops.build(ctx).cache_hit
+    damaged = bytearray(good)
+    damaged[len(good) // 2] ^= 0xFF  # one flipped byte in the pixel data: same size
+    exr.write_bytes(bytes(damaged))
+    lines = []
+    res = ops.build(ctx, progress=lines.append)
+    assert not res.cache_hit and any("damaged" in t for t in lines)
+    assert exr.read_bytes() == good  # rendered again, the same image
+    exr.write_bytes(good[: len(good) // 3])  # truncated
+    assert not ops.build(ctx).cache_hit
+    assert ops.build(ctx).cache_hit
+
+
+def test_clear_cache_reports_what_it_freed_and_keeps_the_scene(scene):
+    from blender_addon import ops
+
+    scene.world.skymodel.image_storage = "PACK"
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    n_files = len(list(ops.cache_dir().glob("sky-*")))
+    assert n_files >= 2
+    (ops.cache_dir() / "not-ours.txt").write_text("keep")
+    r = ops.clear_cache()
+    assert r["files"] == n_files and r["bytes"] > 0
+    assert (ops.cache_dir() / "not-ours.txt").is_file()
+    (ops.cache_dir() / "not-ours.txt").unlink()
+    assert bpy.data.images["Skymodel Sky"].size[0] == 64
+    assert ops.clear_cache()["files"] == 0
+
+
+def test_cache_lives_outside_the_extension_folder(addon, monkeypatch):
+    from blender_addon import ops
+
+    monkeypatch.delenv("SKYMODEL_CACHE_DIR", raising=False)
+    folder = ops.cache_dir()
+    assert folder.is_dir()
+    assert os.path.commonpath([str(folder), os.path.dirname(ops.__file__)]) != os.path.dirname(ops.__file__)
+    assert str(folder).startswith(os.environ["BLENDER_USER_RESOURCES"])
+
+
+def test_headless_entry_interrupted_prints_one_line(addon, monkeypatch, tmp_path, capsys):
+    from blender_addon import render
+
+    def interrupt(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(render, "build_scene", interrupt)
+    assert render.main(["--out", str(tmp_path / "x.png")]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["skymodel: interrupted"]

@@ -46,7 +46,10 @@ Exposure (incident light, capped by a key on the sky)
 Cache
     :func:`render_environment` writes ``sky-<key>.exr`` and ``sky-<key>.json`` (the lamp and
     exposure numbers) into a cache folder, ``<key>`` being a hash of every input that changes
-    the image (:func:`cache_key`); a second call with the same inputs reads them back.
+    the image (:func:`cache_key`); a second call with the same inputs reads them back. The
+    JSON records the EXR's size in bytes and SHA-256; an entry whose EXR does not match them
+    (truncated, overwritten, damaged on disk) or whose JSON cannot be read is deleted and
+    rendered again (:func:`verify_cached`). :func:`clear_cache` empties a cache folder.
 """
 
 from __future__ import annotations
@@ -308,19 +311,87 @@ class EnvironmentMap:
                                               "sun_colour", "sun_angle_deg", "exposure")}
 
 
-def _read_cached(exr: Path, meta: Path, progress) -> EnvironmentMap | None:
+def file_digest(path) -> dict:
+    """``{"bytes": size, "sha256": hex digest}`` of a file (read in 1 MiB chunks)."""
+    h = hashlib.sha256()
+    n = 0
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+            n += len(chunk)
+    return {"bytes": n, "sha256": h.hexdigest()}
+
+
+def verify_cached(exr, meta) -> tuple[dict | None, str]:
+    """``(the cache entry's JSON, "")`` when ``exr`` matches the size and SHA-256 its JSON
+    ``meta`` records, else ``(None, why)`` (missing, unreadable JSON, no digest: an entry
+    written before digests were kept, wrong size, wrong hash)."""
+    exr, meta = Path(exr), Path(meta)
     if not (exr.is_file() and meta.is_file()):
-        return None
+        return None, "missing"
     try:
         with open(meta, encoding="utf-8") as f:
             m = json.load(f)
+        want = m["exr"]
+        if exr.stat().st_size != int(want["bytes"]):
+            return None, f"size {exr.stat().st_size} B, recorded {int(want['bytes'])} B"
+        if file_digest(exr)["sha256"] != str(want["sha256"]):
+            return None, "SHA-256 differs from the recorded one"
+        if not isinstance(m["result"], dict):
+            raise TypeError("result")
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as ex:
+        return None, f"unreadable record ({type(ex).__name__})"
+    return m, ""
+
+
+def _read_cached(exr: Path, meta: Path, progress) -> EnvironmentMap | None:
+    m, why = verify_cached(exr, meta)
+    if m is None:
+        if why != "missing" or exr.exists() or meta.exists():  # a damaged entry: delete it, render again
+            if progress:
+                progress(f"cached sky {exr.name} is damaged ({why}): rendering it again")
+            for f in (exr, meta):
+                try:
+                    f.unlink()
+                except FileNotFoundError:
+                    pass
+        return None
+    try:
         env = EnvironmentMap(image_path=str(exr), cache_hit=True, **m["result"])
-        env.info = dict(m.get("info", {}), cache="hit")
-    except (OSError, ValueError, KeyError, TypeError):
-        return None  # a damaged cache entry is rebuilt
+    except TypeError:
+        return None
+    env.info = dict(m.get("info", {}), cache="hit")
     if progress:
         progress(f"reusing cached sky {exr.name}")
     return env
+
+
+#: The files a cache folder holds (:func:`render_environment`'s entries and their temporaries).
+CACHE_PATTERNS = ("sky-*.exr", "sky-*.json", ".sky-*.tmp")
+
+
+def cache_size(folder) -> tuple[int, int]:
+    """``(files, bytes)`` of the cache entries in ``folder`` (0, 0 when it does not exist)."""
+    files = [f for pat in CACHE_PATTERNS for f in Path(folder).glob(pat) if f.is_file()]
+    return len(files), sum(f.stat().st_size for f in files)
+
+
+def clear_cache(folder, keep=()) -> tuple[int, int]:
+    """Delete the cache entries in ``folder`` (only files named as :data:`CACHE_PATTERNS`;
+    anything else stays), except the paths in ``keep``. Returns ``(files, bytes)`` freed."""
+    keep = {Path(k).resolve() for k in keep}
+    n = size = 0
+    for pat in CACHE_PATTERNS:
+        for f in Path(folder).glob(pat):
+            if not f.is_file() or f.resolve() in keep:
+                continue
+            b = f.stat().st_size
+            try:
+                f.unlink()
+            except OSError:
+                continue
+            n, size = n + 1, size + b
+    return n, size
 
 
 def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: float, *,
@@ -436,6 +507,6 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
         progress(f"writing {exr}")
     image_io.write_exr(exr, rgb.astype(np.float32), chromaticities=image_io.CHROMATICITIES["rec709"],
                        attributes={"skymodel": json.dumps({"cache_key": key, "units": "Y = 1 <=> 683 cd/m2"})})
-    _write_json_atomic(meta, {"result": env.lamp(), "info": info})
+    _write_json_atomic(meta, {"result": env.lamp(), "info": info, "exr": file_digest(exr)})
     env.info = dict(info, cache="miss")
     return rgb.astype(np.float32), env
