@@ -26,7 +26,7 @@ BEGIN, END = "<!-- diagram:begin (python docs/architecture_diagram.py --write) -
 
 #: Wings, top to bottom; anything else directly under skymodel is "base".
 WINGS = ("blender_addon", "skymodel.cli", "skymodel.validation", "skymodel.planner", "skymodel.models",
-         "skymodel.render", "skymodel.optics", "skymodel.data")
+         "skymodel.render", "skymodel.optics", "skymodel.astro", "skymodel.data")
 
 
 def wing_of(module: str) -> str | None:
