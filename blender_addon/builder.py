@@ -559,6 +559,8 @@ def _write_info(tx: Transaction, settings, result):
     ]
     if "total_s" in info:
         lines.append(f"Built in {info['total_s']:.1f} s" + (" (cached image)" if result.cache_hit else ""))
+    if info.get("auto"):
+        lines.append(f"Auto: {info['auto']}")
     if "sky_model" in info:
         lines.append(f"Model {info['sky_model']}")
     if info.get("image_storage"):

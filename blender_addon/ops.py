@@ -68,11 +68,13 @@ def build(context, settings=None, progress=None):
     settings = settings or world.skymodel
     t0 = time.perf_counter()
     params = settings.to_params()
+    auto_info = None
     if params.mode == "AUTO":  # the effect planner decides (skymodel.planner)
         from . import scene_description
 
         auto_plan = scene_description.make_plan(scene, settings)
         params = scene_description.params_from_plan(params, auto_plan)
+        auto_info = scene_description.plan_info(auto_plan)
         if progress:
             for line in scene_description.plan_lines(auto_plan):
                 progress(f"plan: {line}")
@@ -84,13 +86,18 @@ def build(context, settings=None, progress=None):
                  + (f" ({sky.time_iso})" if sky.time_iso else ""))
     if params.mode == "ENVIRONMENT":
         _, result = physics.render_environment(sky, cache_dir(), progress)
-        result.info["total_s"] = time.perf_counter() - t0
-        builder.apply_environment(scene, world, settings, result, progress)
     else:
         from . import volumetric
 
         result = volumetric.compute(sky, cache_dir(), progress)
-        result.info["total_s"] = time.perf_counter() - t0
+    result.info = dict(result.info)  # not the cached entry's dict
+    if auto_info:
+        result.info["auto"] = auto_info["auto"]
+        result.info["warnings"] = list(result.info.get("warnings", ())) + auto_info["warnings"]
+    result.info["total_s"] = time.perf_counter() - t0
+    if params.mode == "ENVIRONMENT":
+        builder.apply_environment(scene, world, settings, result, progress)
+    else:
         volumetric.apply(scene, world, settings, result, progress)
     result.info["total_s"] = time.perf_counter() - t0
     return result
@@ -122,6 +129,8 @@ class SKYMODEL_OT_build_sky(bpy.types.Operator):
             progress.end()
         self.report({"INFO"}, f"Skymodel: {result.mode.lower()} sky built in {result.info['total_s']:.1f} s"
                     + (" (cached image)" if result.cache_hit else ""))
+        for warning in result.info.get("warnings", ()):
+            self.report({"WARNING"}, f"Skymodel: {warning}")
         return {"FINISHED"}
 
 

@@ -259,6 +259,10 @@ class SkymodelSettings(bpy.types.PropertyGroup):
     plan_tolerance: FloatProperty(
         name="Tolerance Value", description="Largest error the plan may make (dE2000, or a fraction for radiance)",
         min=0.001, max=100.0, soft_max=10.0, default=1.0, precision=3)
+    plan_time_budget: FloatProperty(
+        name="Time Budget", description="Most seconds the sky may cost in Auto mode: the environment's build, or "
+        "the volume shells' Cycles render of one frame (a choice predicted to take longer is not made)",
+        min=1.0, max=1e6, soft_max=3600.0, default=60.0, precision=0, unit='TIME_ABSOLUTE')
     override_multiple_scattering: EnumProperty(name="Multiple Scattering", items=_OVERRIDE_ITEMS, default="AUTO")
     override_aerosols: EnumProperty(name="Aerosols", items=_OVERRIDE_ITEMS, default="AUTO")
     override_ozone: EnumProperty(name="Ozone", items=_OVERRIDE_ITEMS, default="AUTO")

@@ -12,7 +12,11 @@ plan into the build's parameters.
 * image size: the render resolution times its percentage; the sky is seen directly
   unless the film is transparent.
 * sun elevation: the panel's sun (angles, or date and time at the location, via
-  :func:`.physics.resolve`); the tolerance from the panel.
+  :func:`.physics.resolve`); the tolerance and the time budget from the panel; the Cycles
+  samples of the scene (the cost of volume shells).
+
+The plan's environment width is what gets built (a width of the user's own wins); the
+planner keeps it within the time budget and says so.
 
 The user's per-effect overrides (Auto / On / Off, and the layer count) are passed to the
 planner, which honours them and fits the other decisions into the rest of the tolerance.
@@ -24,7 +28,6 @@ import dataclasses
 import math
 
 from skymodel import planner
-from skymodel.render.cameras import DEFAULT_MAX_MEMORY_BYTES, estimate_memory_bytes
 
 from . import physics
 
@@ -105,7 +108,8 @@ def describe(scene, settings) -> object:
         cameras=views, sun_elevation_deg=sun_el, farthest_object_m=min(farthest_object_m(scene, cams, scale), 1e6),
         sky_visible=not r.film_transparent, image_width=max(1, int(r.resolution_x * pct)),
         image_height=max(1, int(r.resolution_y * pct)), tolerance_kind=settings.plan_tolerance_kind,
-        tolerance=float(settings.plan_tolerance))
+        tolerance=float(settings.plan_tolerance), time_budget_s=float(settings.plan_time_budget),
+        samples=max(1, int(getattr(getattr(scene, "cycles", None), "samples", 64) or 64)))
 
 
 def overrides(settings) -> dict:
@@ -143,18 +147,10 @@ def params_from_plan(params, plan):
     return dataclasses.replace(params, **changes)
 
 
-#: Auto mode's largest environment width by quality (the plan may ask for more).
-AUTO_MAX_WIDTH = {"preview": 1024, "final": 2048, "reference": 4096}
-
-
-def environment_width(plan, quality: str) -> int:
-    """The plan's environment width, at most :data:`AUTO_MAX_WIDTH` of the quality and
-    within the core's memory guard for the plan's wavelength count (halved until it fits)."""
-    n_wl = int(round(400.0 / plan.wavelength_step_nm)) + 1
-    w = min(int(plan.environment_width), AUTO_MAX_WIDTH.get(str(quality), 1024))
-    while w > 64 and estimate_memory_bytes(w, w // 2, n_wl) > DEFAULT_MAX_MEMORY_BYTES:
-        w //= 2
-    return w
+def environment_width(plan, quality: str = "") -> int:
+    """The plan's environment width, as the planner chose it within the time budget (what
+    gets built; the quality does not cap it)."""
+    return int(plan.environment_width)
 
 
 def short_value(decision) -> str:
@@ -175,7 +171,14 @@ def short_value(decision) -> str:
 
 
 def plan_lines(plan) -> list[str]:
-    """Short lines for the panel: a header, then one per decision."""
+    """Short lines for the panel: a header (mode, predicted error against the tolerance,
+    predicted time), the plan's warnings, then one per decision."""
     head = (f"{plan.mode.capitalize()}: predicted error {plan.predicted_error:.2g} of "
-            f"{plan.scene.tolerance:g} {plan.scene.tolerance_kind}")
-    return [head] + plan.summary()
+            f"{plan.scene.tolerance:g} {plan.scene.tolerance_kind}, about {plan.predicted_build_s:.0f} s"
+            + (" a frame in Cycles" if plan.mode == "volumetric" else " to build"))
+    return [head] + [f"Warning: {w}" for w in plan.warnings()] + plan.summary()
+
+
+def plan_info(plan) -> dict:
+    """What the build's info box shows of the plan: ``auto`` (the header) and ``warnings``."""
+    return {"auto": plan_lines(plan)[0], "warnings": [f"Auto plan: {w}" for w in plan.warnings()]}

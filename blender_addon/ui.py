@@ -69,6 +69,12 @@ def draw_settings(layout, context):
     if s.mode != "ENVIRONMENT":
         if s.mode == "VOLUMETRIC":
             col.prop(s, "n_layers")
+            if s.sun_source == "ANGLES":
+                from . import props, volumetric
+
+                warn = volumetric.twilight_warning(props.angle_degrees(s.sun_elevation, "sun_elevation"), s.n_layers)
+                if warn:
+                    col.label(text=warn, icon="ERROR")
         col.prop(s, "volume_bounces")
     col.prop(s, "set_exposure")
     if s.set_exposure:
@@ -100,6 +106,7 @@ def draw_plan(layout, context, s):
     col.prop(s, "plan_cameras")
     col.prop(s, "plan_tolerance_kind")
     col.prop(s, "plan_tolerance")
+    col.prop(s, "plan_time_budget")
     box = layout.box()
     try:
         plan = scene_description.make_plan(context.scene, s)
@@ -111,6 +118,8 @@ def draw_plan(layout, context, s):
         return
     lines = scene_description.plan_lines(plan)
     box.label(text=lines[0], icon="INFO")
+    for w in plan.warnings():
+        box.label(text=w, icon="ERROR")
     for d in plan:
         row = box.row()
         state = "on" if d.on else "off"

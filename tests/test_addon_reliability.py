@@ -349,3 +349,82 @@ def test_headless_entry_interrupted_prints_one_line(addon, monkeypatch, tmp_path
     assert render.main(["--out", str(tmp_path / "x.png")]) == 130
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["skymodel: interrupted"]
+
+
+# ------------------------------------------------------------------ 2. volumetric twilight (no bpy needed)
+
+
+def _sky_luminance(profile, elevation, width=32):
+    from skymodel.render.cameras import make_camera
+    from skymodel.render.environment import spectrum_rgb
+    from skymodel.render.sky import render_sky
+
+    cam = make_camera("equirectangular", width, center_azimuth_deg=90.0)
+    img = render_sky(profile, cam, elevation, 180.0, 0.0, "preview", include_sun=False)
+    y = spectrum_rgb(img.radiance, profile.wavelengths_nm) @ np.array([0.2126, 0.7152, 0.0722])
+    return y[: y.shape[0] // 2 - 1]  # above the horizon
+
+
+def test_volumetric_layers_carry_twilight_within_ten_percent():
+    """Sun -4 degrees: the layers Volumetric mode builds (layer_edges), rendered by the
+    marcher, against the smooth atmosphere: within 10 % at TWILIGHT_MIN_LAYERS (the old equal
+    optical-depth edges were 4-7x too bright at 8 layers: the cause); fewer layers warn."""
+    from blender_addon import physics, volumetric
+    from skymodel.wavelengths import default_wavelengths
+
+    sky = physics.resolve(physics.SkyParams(location="rural", month=6, sun_elevation_deg=-4.0, mode="VOLUMETRIC"))
+    prof = sky.profile(default_wavelengths(20.0))
+    smooth = _sky_luminance(prof, -4.0)
+    n = volumetric.TWILIGHT_MIN_LAYERS
+    layered = _sky_luminance(prof.layered(edges_m=volumetric.layer_edges(prof, n)), -4.0)
+    assert np.abs(layered / smooth - 1).max() < 0.10
+    old = _sky_luminance(prof.layered(n_layers=8), -4.0)
+    assert (old / smooth).mean() > 2.0
+    assert volumetric.twilight_warning(-4.0, 8) and not volumetric.twilight_warning(-4.0, n)
+    assert not volumetric.twilight_warning(5.0, 8)
+
+
+# ------------------------------------------------------------------ 3. Auto mode counts the cost
+
+
+def _auto_scene(scene, distance_m, sun_deg):
+    s = scene.world.skymodel
+    s.mode = "AUTO"
+    s.sun_elevation = math.radians(sun_deg)
+    add_camera(scene)
+    scene.render.resolution_x, scene.render.resolution_y, scene.render.resolution_percentage = 1920, 1080, 100
+    mesh = bpy.data.meshes.new("Box")
+    mesh.from_pydata([(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (0, 2)], [], [])
+    obj = bpy.data.objects.new("Box", mesh)
+    obj.location = (0.0, distance_m - 10.0, 0.0)  # the camera stands at y = -10
+    scene.collection.objects.link(obj)
+    bpy.context.view_layer.update()
+    return s
+
+
+def test_auto_on_a_50_m_scene_picks_environment_and_says_why(scene):
+    from blender_addon import scene_description
+
+    s = _auto_scene(scene, 50.0, 5.0)
+    p = scene_description.make_plan(scene, s)
+    assert 45.0 < p.scene.farthest_object_m < 60.0
+    assert p.mode == "environment"
+    assert "time budget" in p["aerial_perspective"].reason
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    assert "Skymodel Atmosphere 00" not in bpy.data.objects
+    assert "Auto: Environment: predicted error" in s.last_info and " s to build" in s.last_info
+
+
+def test_auto_over_tolerance_builds_but_says_so(scene):
+    s = _auto_scene(scene, 30_000.0, -4.0)
+    s.plan_tolerance = 0.5
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    assert "exceeds the tolerance" in s.last_info
+
+
+def test_explicit_volumetric_in_twilight_with_few_layers_warns(scene):
+    s = scene.world.skymodel
+    s.mode, s.n_layers, s.volume_bounces = "VOLUMETRIC", 2, 0
+    s.sun_elevation = math.radians(-4.0)
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    assert "Twilight: 2 layers" in s.last_info

@@ -53,6 +53,21 @@ SHARES = {"aerial_perspective": 0.35, "physical": 0.35, "orders": 0.15, "spectra
 PHYSICAL_SHARE = SHARES["physical"]
 #: Environment image widths the planner picks from (height = width / 2).
 MIN_ENV_WIDTH, MAX_ENV_WIDTH = 256, 8192
+#: Build time of an environment image per pixel beyond the effect table's render (s/px): the
+#: fixed part (optical profile, multiple-scattering tables) is the table's time, the marching
+#: of each pixel adds this. Measured (rural, June, sun 10 degrees, preview, 2-core machine:
+#: 256: 5.7 s, 512: 5.8 s, 1024: 7.5 s, 2048: see docs/planner.md): (7.51 - 5.84) s /
+#: (1024x512 - 512x256) px.
+ENV_SECONDS_PER_PIXEL = 4.25e-6
+#: Cycles CPU render time of the volume shells, s per pixel, sample and layer (volume bounces 8):
+#: measured 64x32 px, rural, sun 10 degrees, 2-core machine, bpy 5.0.1: 7.5 s at 8 layers and
+#: 15.5 s at 16 layers with 32 samples (time grows with the layers; 1.15e-4 s per pixel and
+#: sample at 8 layers). docs/planner.md.
+VOLUME_SECONDS_PER_PIXEL_SAMPLE_LAYER = 1.44e-5
+#: Below the horizon the volume shells need at least this many layers to carry the sunlit
+#: upper air within 10 % (the add-on's layer edges; measured at sun -4 degrees: 8.9 % worst
+#: pixel at 16 layers, 30 % at 8).
+TWILIGHT_MIN_LAYERS = 16
 
 #: The effects a plan decides, in the order a plan lists them.
 EFFECT_NAMES = ("multiple_scattering", "aerosols", "ozone", "earth_shadow", "ground_reflection", "sun_disc",
@@ -121,7 +136,30 @@ class Plan:
 
     @property
     def environment_width(self) -> int:
+        """The width the add-on builds (what :func:`decide_angular_resolution` chose within the time budget)."""
         return int(self["angular_resolution"].value)
+
+    @property
+    def within_tolerance(self) -> bool:
+        return self.predicted_error <= self.scene.tolerance
+
+    @property
+    def predicted_build_s(self) -> float:
+        """Predicted seconds of the sky's build: the environment at its width, or the shells'
+        Cycles render of one frame (the largest of the decisions' times)."""
+        d = self["aerial_perspective"] if self.mode == "volumetric" else self["angular_resolution"]
+        return float(d.predicted_time_s) if d.predicted_time_s is not None else float(self.predicted_time_s)
+
+    def warnings(self) -> list[str]:
+        """What the user must be told before this plan is built ([] when nothing)."""
+        out = []
+        if not self.within_tolerance:
+            out.append(f"predicted error {self.predicted_error:.2g} exceeds the tolerance "
+                       f"{self.scene.tolerance:g} {self.scene.tolerance_kind}")
+        b = self.scene.time_budget_s
+        if b is not None and self.predicted_build_s > b:
+            out.append(f"predicted {self.predicted_build_s:.0f} s exceeds the time budget {b:g} s")
+        return out
 
     def march_settings(self, base=None):
         """``base`` (default: the ``final`` quality) with the plan's orders and Earth's
@@ -149,7 +187,8 @@ class Plan:
 
     def as_dict(self) -> dict:
         return {"mode": self.mode, "predicted_error": self.predicted_error,
-                "predicted_time_s": self.predicted_time_s,
+                "within_tolerance": self.within_tolerance, "warnings": self.warnings(),
+                "predicted_build_s": self.predicted_build_s, "predicted_time_s": self.predicted_time_s,
                 "predicted_time_everything_s": self.predicted_time_everything_s, "time_basis": self.time_basis,
                 "tolerance": {"kind": self.scene.tolerance_kind, "value": self.scene.tolerance},
                 "decisions": {k: d.as_dict() for k, d in self.decisions.items()}, "tables": self.tables}
@@ -239,13 +278,23 @@ def decide_aerial_perspective(ctx: _Planning) -> tuple[bool, float, Decision | N
     shells the decision waits for :func:`decide_volume_layers`)."""
     d = ctx.scene.farthest_object_m
     ap_err = ctx.eff.aerial_error(ctx.el, d, ctx.scene.tolerance_kind)
-    shells = ctx.forced.get("aerial_perspective", ap_err > SHARES["aerial_perspective"] * ctx.tol)
+    needed = ap_err > SHARES["aerial_perspective"] * ctx.tol
+    t_vol = volume_render_time(ctx.scene, TWILIGHT_MIN_LAYERS if ctx.el < 0 else 8)
+    budget = ctx.scene.time_budget_s
+    too_slow = budget is not None and t_vol > budget
+    shells = ctx.forced.get("aerial_perspective", needed and not too_slow)
     if shells:
         return True, ap_err, None
-    if d > 0:
+    share = SHARES["aerial_perspective"] * ctx.tol
+    if d > 0 and needed and too_slow and "aerial_perspective" not in ctx.forced:
+        reason = (f"objects {d / 1000:g} km away miss {ap_err:.2g} {ctx.unit} of haze without the air in between "
+                  f"(its share of the tolerance: {share:.2g}), but volume shells would take about {t_vol:.0f} s a "
+                  f"frame in Cycles ({ctx.scene.image_width}x{ctx.scene.image_height}, {ctx.scene.samples} samples), "
+                  f"over the time budget of {budget:g} s: environment only")
+    elif d > 0:
         reason = (f"nothing is farther than {d / 1000:g} km, where leaving out the air in between changes an "
                   f"object's colour by {ap_err:.2g} {ctx.unit} (its share of the tolerance: "
-                  f"{SHARES['aerial_perspective'] * ctx.tol:.2g}): environment only, no volume shells")
+                  f"{share:.2g}): environment only, no volume shells")
     else:
         reason = "no object is visible, only the sky: environment only, no volume shells"
     reason = USER * ("aerial_perspective" in ctx.forced) + reason
@@ -379,6 +428,19 @@ def decide_spectral_resolution(ctx: _Planning) -> tuple[Decision, float]:
         + (", within its share of the tolerance" if finer else ", the finest measured"), e, t, src), saved
 
 
+def volume_render_time(scene: SceneDescription, n_layers: int) -> float:
+    """Predicted Cycles CPU seconds of one frame with ``n_layers`` volume shells
+    (:data:`VOLUME_SECONDS_PER_PIXEL_SAMPLE_LAYER`)."""
+    return float(VOLUME_SECONDS_PER_PIXEL_SAMPLE_LAYER * int(n_layers) * scene.image_width * scene.image_height
+                 * scene.samples)
+
+
+def environment_build_time(t_table: float, width: int) -> float:
+    """Predicted seconds to build an environment ``width`` x ``width / 2``: the effect
+    table's render time (its 64x32 image) plus :data:`ENV_SECONDS_PER_PIXEL` per further pixel."""
+    return float(t_table + ENV_SECONDS_PER_PIXEL * max(0, int(width) * (int(width) // 2) - 64 * 32))
+
+
 def decide_volume_layers(ctx: _Planning, ap_err: float) -> Decision:
     """Step 3c (with volume shells only): the fewest layers whose measured error fits
     their share, at most :data:`MAX_LAYERS` (or the user's count); ``ap_err`` the error
@@ -391,24 +453,35 @@ def decide_volume_layers(ctx: _Planning, ap_err: float) -> Decision:
         for v, (e, t) in acc.knob("layers", el, ctx.acc_metric).items():
             if isinstance(v, (int, float)) and float(v).is_integer() and int(v) <= MAX_LAYERS:
                 layers[int(v)] = (e, t, f"measured.json layers={v}")
-    n_ok = [n for n in sorted(layers) if layers[n][0] <= SHARES["layers"] * ctx.tol and n <= MAX_LAYERS]
+    floor = TWILIGHT_MIN_LAYERS if el < 0 else 1
+    n_ok = [n for n in sorted(layers) if layers[n][0] <= SHARES["layers"] * ctx.tol and floor <= n <= MAX_LAYERS]
     n_l = n_ok[0] if n_ok else max(n for n in layers if n <= MAX_LAYERS)
     note = "" if n_ok else " (the most measured; its layering error exceeds the share of the tolerance)"
+    if el < 0 and not n_ok and n_l < TWILIGHT_MIN_LAYERS:
+        n_l = TWILIGHT_MIN_LAYERS
+    if el < 0:
+        note += (f" (the sun is below the horizon: at least {TWILIGHT_MIN_LAYERS} layers carry the sunlit upper "
+                 "air within 10 %)")
     if "n_layers" in forced:
         n_l = forced["n_layers"]
         note = " (layer count set by the user)"
         if n_l not in layers:  # the nearest measured count at or below it (a fewer-layer error bounds it)
             below = [n for n in layers if n <= n_l]
             layers[n_l] = layers[max(below)] if below else layers[min(layers)]
-    e, t, src = layers[n_l]
+    if n_l not in layers:
+        below = [n for n in layers if n <= n_l]
+        layers[n_l] = layers[max(below)] if below else layers[min(layers)]
+    e, _, src = layers[n_l]
+    t = volume_render_time(ctx.scene, n_l)
     top = TOP_ALTITUDE_M
     cam_lo = min(c.altitude_m for c in ctx.scene.cameras)
     return Decision(
         "aerial_perspective", True, {"n_layers": n_l, "altitude_range_m": (0.0, top)},
         USER * ("aerial_perspective" in forced) + f"objects {d / 1000:g} km away would be off by {ap_err:.2g} "
         f"{ctx.unit} without the air in between, so "
-        f"{n_l} volume shells (edges at equal 550 nm optical depth from the ground to {top / 1000:g} km, cameras "
-        f"from {cam_lo:g} m) carry the aerial perspective{note}", e, t, src)
+        f"{n_l} volume shells (edges at equal shares of extinction^0.3 from the ground to {top / 1000:g} km, "
+        f"cameras from {cam_lo:g} m) carry the aerial perspective{note}; about {t:.0f} s a frame in Cycles "
+        f"({ctx.scene.image_width}x{ctx.scene.image_height}, {ctx.scene.samples} samples)", e, t, src)
 
 
 def decide_sun_disc(scene: SceneDescription, forced: dict) -> Decision:
@@ -428,23 +501,34 @@ def decide_sun_disc(scene: SceneDescription, forced: dict) -> Decision:
     return Decision("sun_disc", disc_on, None, USER * ("sun_disc" in forced) + where_sun + disc, 0.0, None, "geometry")
 
 
-def decide_angular_resolution(scene: SceneDescription) -> Decision:
+def decide_angular_resolution(scene: SceneDescription, t_table: float = 0.0) -> Decision:
     """Step 4b: the environment image's width (pixels, a power of 2 in
     :data:`MIN_ENV_WIDTH`..:data:`MAX_ENV_WIDTH`, height = width / 2) such that one of its
-    pixels is no larger than a camera pixel; the smallest when the sky only lights the scene."""
+    pixels is no larger than a camera pixel (the smallest when the sky only lights the
+    scene), and no wider than the time budget allows; its predicted time is the build's at
+    that width (:func:`environment_build_time` from the plan's time ``t_table`` at the table's size)."""
     if not scene.sky_visible:
         return Decision("angular_resolution", True, MIN_ENV_WIDTH,
                         f"the sky only lights the scene, so a {MIN_ENV_WIDTH}x{MIN_ENV_WIDTH // 2} "
                         "environment carries its light (irradiance is a smooth integral over the sky)",
-                        0.0, None, "geometry")
+                        0.0, environment_build_time(t_table, MIN_ENV_WIDTH), "geometry")
     px_deg = scene.max_fov_deg / max(scene.image_width, scene.image_height)
     need = 360.0 / px_deg
     w = int(min(MAX_ENV_WIDTH, max(MIN_ENV_WIDTH, 2 ** math.ceil(math.log2(need)))))
-    return Decision("angular_resolution", True, w,
-                    f"a camera pixel spans {px_deg:.3g} degrees ({scene.max_fov_deg:g} degree view over "
-                    f"{max(scene.image_width, scene.image_height)} px), so a {w}x{w // 2} environment keeps the sky "
-                    "at least as sharp as the picture" + (" (the largest the planner makes)" if w == MAX_ENV_WIDTH
-                                                          else ""), 0.0, None, "geometry")
+    sharp = w
+    budget = scene.time_budget_s
+    while budget is not None and w > MIN_ENV_WIDTH and environment_build_time(t_table, w) > budget:
+        w //= 2
+    t = environment_build_time(t_table, w)
+    reason = (f"a camera pixel spans {px_deg:.3g} degrees ({scene.max_fov_deg:g} degree view over "
+              f"{max(scene.image_width, scene.image_height)} px), so a {sharp}x{sharp // 2} environment keeps the sky "
+              "at least as sharp as the picture" + (" (the largest the planner makes)" if sharp == MAX_ENV_WIDTH
+                                                    else ""))
+    if w < sharp:
+        reason += (f"; it would take about {environment_build_time(t_table, sharp):.0f} s, over the time budget of "
+                   f"{budget:g} s, so {w}x{w // 2} (softer than the picture by {sharp // w}x)")
+    reason += f"; about {t:.0f} s to build"
+    return Decision("angular_resolution", True, w, reason, 0.0, t, "geometry")
 
 
 def predicted_times(ctx: _Planning, saved: float) -> tuple[float, float, str]:
@@ -499,9 +583,9 @@ def plan(scene: SceneDescription, effects=EFFECTS_PATH, accuracy=ACCURACY_PATH, 
     spent = 0.0
     for d in made:
         spent += d.predicted_error
-    made += [decide_sun_disc(scene, forced), decide_angular_resolution(scene)]
+    t_plan, t_all, basis = predicted_times(ctx, 0.0 + saved_orders + saved_spectral)
+    made += [decide_sun_disc(scene, forced), decide_angular_resolution(scene, t_plan)]
     rank = {k: i for i, k in enumerate(EFFECT_NAMES)}
     decisions = {d.name: d for d in sorted(made, key=lambda d: rank[d.name])}
-    t_plan, t_all, basis = predicted_times(ctx, 0.0 + saved_orders + saved_spectral)
     tables = {"effects": eff.table.get("command", ""), "accuracy": acc.table.get("command", "") if acc else None}
     return Plan(scene, decisions, float(spent), float(t_plan), float(t_all), basis, tables)

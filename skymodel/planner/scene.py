@@ -76,6 +76,10 @@ class SceneDescription:
     image_width, image_height : the target image in pixels.
     tolerance_kind : ``"de2000"`` (mean CIEDE2000 of the tone-mapped sky) or
         ``"radiance_rel"`` (mean relative luminance error); ``tolerance`` its value.
+    time_budget_s : the most seconds the sky may cost (None: no limit): the environment's
+        build, or the volume shells' Cycles render of one frame; a choice predicted to take
+        longer is not made (the plan says so).
+    samples : Cycles samples per pixel of the user's render (the volume shells' cost).
     """
 
     cameras: tuple = (CameraView(),)
@@ -86,6 +90,8 @@ class SceneDescription:
     image_height: int = 1080
     tolerance_kind: str = "de2000"
     tolerance: float = 1.0
+    time_budget_s: float | None = None
+    samples: int = 64
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -116,6 +122,15 @@ class SceneDescription:
         if tol <= 0.0:
             raise SkymodelInputError("tolerance", self.tolerance, f"a number in (0, {high:g}]")
         set_("tolerance", tol)
+        if self.time_budget_s is not None:
+            budget = check_range("time_budget_s", self.time_budget_s, 0.0, 1e7, "seconds")
+            if budget <= 0.0:
+                raise SkymodelInputError("time_budget_s", self.time_budget_s, "seconds > 0, or None (no limit)")
+            set_("time_budget_s", budget)
+        v = self.samples
+        if isinstance(v, bool) or not float(v).is_integer() or not 1 <= int(v) <= 1_000_000:
+            raise SkymodelInputError("samples", v, "a whole number of samples per pixel in 1..1000000")
+        set_("samples", int(v))
 
     @property
     def elevation_range_deg(self) -> tuple[float, float]:
