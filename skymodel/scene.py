@@ -219,6 +219,27 @@ _ALL = [
     _P("day", "", "day of the month (UTC)", default=21, minimum=1, maximum=31, integer=True),
     _P("hour", "h", "hour of the day, UTC", default=12, minimum=0, maximum=23, integer=True),
     _P("minute", "min", "minute of the hour", default=0, minimum=0, maximum=59, integer=True),
+    # ---- sequences (skymodel timelapse, the add-on's animation)
+    _P("date", "", "local date of a day sequence, ISO 8601 (2026-06-21), read in --timezone", flag="--date",
+       default_note="none (give --date with --from/--to, or --dates)"),
+    _P("time_from", "", "local time of a day sequence's first frame (19:00)", flag="--from",
+       default_note="none (required with --date)"),
+    _P("time_to", "", "local time of a day sequence's last frame (22:30; included when the step lands on it)",
+       flag="--to", default_note="none (required with --date)"),
+    _P("every", "", "step between frames: a whole number and a unit (30s, 10min, 1h; 1day, 1week, 1month "
+       "for --dates)", flag="--every", default_note="none (required)"),
+    _P("dates", "", "first and last date of a sequence of days at one sun elevation, FIRST:LAST "
+       "(2026-01-15:2026-12-15)", flag="--dates", default_note="none (a day sequence: --date)"),
+    _P("max_frames", "", "largest number of frames a sequence may have (checked before any work)", default=2000,
+       minimum=1, maximum=100_000, integer=True, flag="--max-frames"),
+    _P("frame_rate", "fps", "frames per second of the sequence's video", default=12, minimum=1, maximum=120,
+       integer=True, flag="--fps"),
+    _P("exposure_curve", "", "exposure of a sequence's previews: follow = each frame's log-average luminance "
+       "smoothed over 3 frames (a day: dusk stays readable), fixed = one exposure for every frame (a year at one "
+       "sun elevation: the colours compare)", default="follow", choices=("follow", "fixed"),
+       flag="--exposure-curve"),
+    _P("dusk_or_dawn", "", "which crossing of --sun-elevation a sequence of days uses", default="dusk",
+       choices=("dusk", "dawn"), flag="--crossing"),
     # ---- air
     _P("site_altitude", "m", "height of the ground above sea level: the atmosphere starts there (Rayleigh "
        "and ozone from the standard atmosphere at that height, aerosols from their ground concentration)",

@@ -1,7 +1,7 @@
 """The ``skymodel`` command line: the parser and the dispatch.
 
-Commands, one module each: ``profile``, ``sun``, ``presets``, ``render``, ``radiance``,
-``compare`` (:mod:`skymodel.cli.profile` ...) and ``bench`` (:mod:`skymodel.cli.bench`).
+Commands, one module each: ``profile``, ``sun``, ``presets``, ``render``, ``timelapse``,
+``radiance``, ``compare`` (:mod:`skymodel.cli.profile` ...) and ``bench`` (:mod:`skymodel.cli.bench`).
 Every command takes ``--json`` for machine-readable output where it prints results.
 
 Exit statuses, each with one line on stderr and no traceback:
@@ -20,12 +20,12 @@ import signal
 import sys
 import threading
 
-from skymodel.cli import bench, compare, presets, profile, radiance, render, sun
+from skymodel.cli import bench, compare, presets, profile, radiance, render, sun, timelapse
 from skymodel.errors import SkymodelInputError
 
 #: The command registrars, in the order ``skymodel --help`` lists them; each takes the subparsers object.
-COMMANDS = (profile.add_command, sun.add_command, presets.add_command, render.add_command, radiance.add_command,
-            compare.add_command, bench.add_bench_command)
+COMMANDS = (profile.add_command, sun.add_command, presets.add_command, render.add_command,
+            timelapse.add_command, radiance.add_command, compare.add_command, bench.add_bench_command)
 
 
 class _Parser(argparse.ArgumentParser):
