@@ -5,10 +5,10 @@ Zenith brightness
     Reviews 42, 503 (La Palma Technical Note 115): the darkest moonless sky at the zenith,
     near solar minimum and away from the Galaxy and the ecliptic, is U 22.0, B 22.7, V 21.9,
     R 21.0, I 20.0 mag/arcsec^2 (:data:`DARK_SKY_ZENITH_MAG_ARCSEC2`). Krisciunas & Schaefer
-    (1991, PASP 103, 1033) adopt 21.587 mag/arcsec^2 in V (79 nL) at Mauna Kea. The airglow
-    grows by about half a magnitude from solar minimum to maximum (Benn & Ellison); the
-    zenith V is therefore a parameter (``zenith_v_mag``) and the other bands keep their
-    published offsets from V.
+    (1991, PASP 103, 1033) adopt 21.587 mag/arcsec^2 in V (79 nL) at Mauna Kea. Benn &
+    Ellison find the sky 0.4 mag brighter at solar maximum and 0.4 mag brighter at low
+    ecliptic latitude; the zenith V is therefore a parameter (``zenith_v_mag``) and the
+    other bands keep their published offsets from V.
 
 Spectrum
     Each band's surface brightness is turned into spectral radiance at the band's effective
