@@ -13,6 +13,10 @@ Modules
     :mod:`~skymodel.astro.night_background`
         the diffuse natural night sky (airglow, zodiacal light and unresolved starlight) of a
         dark site, from published broad-band surface brightnesses.
+    :mod:`~skymodel.astro.night_sky`
+        the three together in one equirectangular radiance image for a place and time (stars
+        and the moon as point sources, the glow per row), dimmed by the caller's direct
+        transmittance: the one call a renderer needs besides its own moonlit sky.
 
 What it may import: the base modules (:mod:`skymodel.errors`, :mod:`skymodel.wavelengths`,
 :mod:`skymodel.numerics`, :mod:`skymodel.sun`, :mod:`skymodel.colorimetry`,
