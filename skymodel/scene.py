@@ -293,6 +293,11 @@ _ALL = [
        flag="--wavelength-step"),
     _P("volume_layers", "", "nested atmosphere volumes of Blender's Volumetric mode", default=8, minimum=1,
        maximum=24, integer=True, soft_maximum=16),
+    _P("exposure_ev", "EV", "exposure of the PNG preview in stops added to the automatic exposure", minimum=-64.0,
+       maximum=64.0, flag="--exposure", default_note="0 (the automatic exposure)"),
+    _P("max_memory", "GiB", "largest estimated peak memory a render may need (skymodel.render.memory: the "
+       "quality's tables, the marching bands and the image); a render over it is refused before it starts",
+       default=4.0, minimum=0.0, maximum=4096.0, exclusive_minimum=True, flag="--max-memory"),
     _P("view_zenith", "deg", "zenith angle of a view direction", minimum=0.0, maximum=180.0,
        flag="--view-zenith"),
     _P("compare_size", "px", "panel size of `skymodel compare` (fisheye)", default=128, minimum=16,

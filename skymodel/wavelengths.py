@@ -15,6 +15,9 @@ from skymodel.errors import SkymodelInputError
 MIN_NM = 380.0
 MAX_NM = 780.0
 DEFAULT_STEP_NM = 5.0
+#: Finest step of :func:`default_wavelengths` [nm] (4001 samples; the tabulated data are
+#: no finer than 1 nm). A smaller step once asked numpy for an array beyond its size limit.
+MIN_STEP_NM = 0.1
 
 
 def _number(parameter: str, value, allowed: str) -> float:
@@ -34,10 +37,10 @@ def default_wavelengths(step_nm: float = DEFAULT_STEP_NM) -> np.ndarray:
     """Evenly spaced grid from 380 to 780 nm inclusive with ``step_nm`` spacing (nm).
 
     Raises :class:`SkymodelInputError` naming ``step_nm`` for a step that is not a finite
-    number in (0, 400] nm (text such as ``'5'`` and booleans included)."""
-    allowed = f"a number in (0, {MAX_NM - MIN_NM:g}] nm"
+    number in [0.1, 400] nm (text such as ``'5'`` and booleans included)."""
+    allowed = f"a number in [{MIN_STEP_NM:g}, {MAX_NM - MIN_NM:g}] nm"
     step = _number("step_nm", step_nm, allowed)
-    if not (0 < step <= MAX_NM - MIN_NM):
+    if not (MIN_STEP_NM <= step <= MAX_NM - MIN_NM):
         raise SkymodelInputError("step_nm", step_nm, allowed)
     n = int(round((MAX_NM - MIN_NM) / step)) + 1
     return np.linspace(MIN_NM, MAX_NM, n)

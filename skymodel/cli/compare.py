@@ -36,12 +36,15 @@ def cmd_compare(args) -> int:
     from skymodel.models.comparison import compare, format_table
     from skymodel.render import image_io
 
+    # every option checked before any work: a bad one fails the command (exit 2), never a skipped panel
+    quality = scene.check("quality", args.quality)
+    size = scene.check("compare_size", args.compare_size)
+    step = scene.check("compare_wavelength_step", args.compare_wavelength_step)
     image_io.check_output_path("out", args.out, (".png",))
     atm = atmosphere_from_args(args)
     sun = sun_from_args(args, atm)
     say = None if args.quiet else (lambda text: print(text, file=sys.stderr, flush=True))
-    cmp = compare(atm, sun.elevation_deg, sun.azimuth_deg, args.models, args.compare_size,
-                  scene.check("quality", args.quality), args.compare_wavelength_step, progress=say)
+    cmp = compare(atm, sun.elevation_deg, sun.azimuth_deg, args.models, size, quality, step, progress=say)
     if cmp.image is not None:
         image_io.write_png(args.out, cmp.image, text={"Software": "skymodel compare",
                                                        "Models": ",".join(cmp.models)})

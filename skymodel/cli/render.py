@@ -25,7 +25,8 @@ def add_command(sub) -> None:
     p.add_argument("--no-png", action="store_true", help="write no PNG")
     p.add_argument("--spectral", default=None, help="also save the spectral cube as .npz")
     p.add_argument("--xyz", action="store_true", help="EXR channels X, Y, Z instead of Rec.709 R, G, B")
-    p.add_argument("--exposure", type=float, default=None, help="PNG exposure in EV relative to auto")
+    add_option(p, "exposure_ev", dest="exposure", default=None)
+    add_option(p, "max_memory")
     p.add_argument("--no-sun", action="store_true", help="leave the solar disc out of the image")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_render)
@@ -52,6 +53,7 @@ class Progress:
 def cmd_render(args) -> int:
     from skymodel.render import image_io
     from skymodel.render.cameras import make_camera
+    from skymodel.render.memory import check_render_memory
     from skymodel.render.quality import quality_settings
     from skymodel.render.sky import render_sky
     from skymodel.wavelengths import default_wavelengths
@@ -61,9 +63,13 @@ def cmd_render(args) -> int:
     sun = sun_from_args(args, atm)
     quality = scene.check("quality", args.quality)
     settings = quality_settings(quality)
-    wl = default_wavelengths(args.wavelength_step)
+    wl = default_wavelengths(scene.check("wavelength_step", args.wavelength_step))
     width, height = args.image_width
-    camera = make_camera(args.camera, width, height, n_wavelengths=wl.size)
+    scene.check("observer_altitude", args.observer_altitude)
+    exposure = None if args.exposure is None else scene.check("exposure_ev", args.exposure)
+    limit_gib = scene.check("max_memory", args.max_memory)
+    camera = make_camera(args.camera, width, height, n_wavelengths=wl.size, max_memory_bytes=limit_gib * 1024**3)
+    check_render_memory(camera.width, camera.height, wl.size, settings, limit_gib, wavelengths_nm=wl)
     png = None if args.no_png else (args.png or (str(args.out).rsplit(".", 1)[0] + ".png"))
     # validate every output path before the (long) render, so nothing is half-written
     for key, path, ext in (("out", args.out, ".exr"), ("png", png, ".png"), ("spectral", args.spectral, ".npz")):
@@ -74,12 +80,12 @@ def cmd_render(args) -> int:
                f"{camera.width}x{camera.height}, {wl.size} wavelengths, quality {quality}")
     profile = profile_for_sun(atm, wl, sun)
     img = render_sky(profile, camera, sun.elevation_deg, sun.azimuth_deg, args.observer_altitude, settings,
-                     include_sun=not args.no_sun, progress=prog.order)
+                     include_sun=not args.no_sun, progress=prog.order, max_memory_gib=limit_gib)
     if not args.quiet:
         print(file=sys.stderr)
     prog.stage(f"rendered in {img.info['total_s']:.1f}s ({img.info['orders']} scattering orders)")
     written = image_io.save_outputs(out=args.out, png=png, spectral=args.spectral, radiance=img.radiance,
-                                    wavelengths=wl, camera=camera, exposure_ev=args.exposure,
+                                    wavelengths=wl, camera=camera, exposure_ev=exposure,
                                     colour_space="xyz" if args.xyz else "rec709",
                                     metadata={"atmosphere": profile.metadata, "sun_elevation_deg": sun.elevation_deg,
                                               "sun_azimuth_deg": sun.azimuth_deg, "time_utc": sun.time_utc,

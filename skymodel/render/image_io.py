@@ -38,6 +38,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from skymodel import scene
 from skymodel.errors import SkymodelInputError
 
 __all__ = ["write_exr", "write_png", "tonemap", "write_spectral_npz", "save_outputs", "luminance_rec709",
@@ -448,7 +449,7 @@ def tonemap(rgb_linear, exposure_ev=None, *, valid=None, average_luminance=None,
     bad = mask & ~np.all(np.isfinite(rgb), axis=-1)
     if bad.any():
         raise SkymodelInputError("rgb_linear", f"{int(bad.sum())} non-finite pixels", "finite values in valid pixels")
-    ev = 0.0 if exposure_ev is None else _check_number("exposure_ev", exposure_ev, -64.0, 64.0)
+    ev = 0.0 if exposure_ev is None else scene.check("exposure_ev", exposure_ev)
     key = _check_number("key", key, 0.0, 1.0, open_low=True)
     white = _check_number("white", white, 0.0, 1e30, open_low=True)
     rgb = np.where(mask[..., None], rgb, 0.0)
@@ -611,7 +612,7 @@ def save_outputs(out=None, png=None, spectral=None, *, radiance, wavelengths, ca
     if space not in _EXR_SPACES:
         raise SkymodelInputError("colour_space", colour_space, "one of: " + ", ".join(_EXR_SPACES))
     if exposure_ev is not None:
-        _check_number("exposure_ev", exposure_ev, -64.0, 64.0)
+        scene.check("exposure_ev", exposure_ev)
     rad = np.asarray(radiance)
     if rad.ndim != 3 or rad.shape[:2] != camera.shape:
         raise SkymodelInputError("radiance", f"array of shape {rad.shape}",

@@ -99,18 +99,24 @@ def check_render_arguments(profile, camera, sun_elevation_deg, sun_azimuth_deg, 
 
 def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_deg: float = 180.0,
                observer_altitude_m: float = 0.0, quality=None, include_sun: bool = True,
-               progress=None, solution=None) -> SkyImage:
+               progress=None, solution=None, max_memory_gib=None) -> SkyImage:
     """Render ``camera``'s pixels for the atmosphere ``profile`` (smooth or layered).
 
     ``sun_elevation_deg`` [deg] in -12..90 (below -12 is night: refused, not clamped),
     ``sun_azimuth_deg`` [deg], ``observer_altitude_m`` [m]; ``quality``: a preset name, a
     MarchSettings, or None for the default quality (:mod:`skymodel.scene`, ``quality``).
-    Every argument is checked before the march (:func:`check_render_arguments`).
+    Every argument is checked before the march (:func:`check_render_arguments`), and the
+    render's estimated peak memory against ``max_memory_gib`` [GiB] (None: the registry's
+    ``max_memory``; :func:`skymodel.render.memory.check_render_memory`).
     ``solution``: a :class:`~skymodel.render.marcher.SkySolution` of this profile to reuse
     instead of solving multiple scattering again (:mod:`skymodel.render.sequence`)."""
+    from skymodel.render.memory import check_render_memory
+
     settings = check_render_arguments(profile, camera, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m,
                                       quality)
     sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings = settings
+    check_render_memory(camera.width, camera.height, profile.wavelengths_nm.size, settings, max_memory_gib,
+                        wavelengths_nm=profile.wavelengths_nm)
     t0 = time.perf_counter()
     marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
                          progress=progress, solution=solution)

@@ -1,0 +1,151 @@
+"""The memory guard: what a spectral render will need, estimated before any work.
+
+A render goes through three phases, each with its own peak; the arrays of one phase are
+freed before the next, so the estimate (:func:`estimate_render_memory`) is the base plus
+the largest phase, not the sum:
+
+* ``base``: the interpreter with numpy, scipy and skymodel imported (:data:`BASE_BYTES`);
+* ``tables``: building the quality's tables, which do not grow with the image: the
+  sun-transmittance table (:data:`SUN_TABLE_BYTES_PER_SAMPLE` per ray sample, altitudes x
+  x-nodes x steps) and the multiple-scattering solve (:data:`SOLVE_BYTES` plus
+  :data:`TRANSPORT_COPIES` float64 transport matrices of (table_altitudes x table_mu)^2 x
+  solver wavelengths);
+* ``bands``: marching one band of directions, ``min(chunk, directions) x view_steps x
+  n_wl`` float64 values, :data:`BAND_COPIES` of them alive at once
+  (:meth:`skymodel.render.marcher.SkyMarcher._exact`), with the tables kept;
+* ``image``: the float64 spectral cube ``H x W x n_wl``, :data:`IMAGE_COPIES` of them
+  (single, multiple and ground parts, their sum, the image, the writers' conversions), or
+  three of them while the pixels near the sun are marched in bands, with the tables kept.
+
+The constants were measured, not derived (peak of each phase with ``tracemalloc`` for
+the preview and final presets, then the whole render's peak resident memory):
+``benchmarks/bench_memory.py`` renders a grid of qualities x image sizes with ``skymodel
+render`` in child processes and compares this estimate with each child's peak resident
+memory (``ru_maxrss``); docs/reliability.md ("Memory guard") has the table and the
+command. The target is the peak within 25 %; the default atmosphere was measured (an
+aerosol type with more components has a few more basis functions in the tables).
+
+:func:`check_render_memory` refuses a render whose estimate exceeds the limit, the
+``max_memory`` parameter of :mod:`skymodel.scene` (GiB; ``--max-memory`` on the command
+line, ``max_memory_gib=`` in :func:`~skymodel.render.sky.render_sky`), with a
+:class:`~skymodel.errors.SkymodelInputError` that shows the estimate and its parts.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from skymodel import scene
+from skymodel.errors import SkymodelInputError
+
+__all__ = ["MemoryEstimate", "estimate_render_memory", "check_render_memory", "limit_bytes"]
+
+GIB = 1024**3
+#: Resident memory of a process that has imported skymodel's renderer and its writers [bytes] (measured).
+BASE_BYTES = 90 * 1024**2
+#: Peak bytes per ray sample while the sun-transmittance table is built (measured: 366 preview, 345 final).
+SUN_TABLE_BYTES_PER_SAMPLE = 360.0
+#: The multiple-scattering solve's peak apart from its transport matrices [bytes] (measured).
+SOLVE_BYTES = 0.39 * GIB
+#: float64 transport matrices ((table_altitudes x table_mu)^2 x solver wavelengths) alive at once (measured).
+TRANSPORT_COPIES = 1.6
+#: float64 arrays of one marching band (chunk x view_steps x n_wl) alive at once (measured: 15 preview, 16.5 final).
+BAND_COPIES = 16.0
+#: float64 spectral cubes (H x W x n_wl) alive at once, render and writers (measured).
+IMAGE_COPIES = 6.0
+#: The tables kept through the march, in float64 transport matrices (the float32 copy, the field, the
+#: allocator's unreturned pages; measured: the final preset's image phase over the preview's).
+KEPT_TABLES = 1.0
+
+
+@dataclass(frozen=True)
+class MemoryEstimate:
+    """An estimate of a render's peak resident memory [bytes]: the base plus the
+    largest of its phases (tables, bands, image; each includes what earlier phases keep)."""
+
+    base: int
+    tables: int
+    bands: int
+    image: int
+
+    @property
+    def total(self) -> int:
+        return self.base + max(self.tables, self.bands, self.image)
+
+    @property
+    def gib(self) -> float:
+        return self.total / GIB
+
+    def text(self) -> str:
+        """``'1.23 GiB (base 0.06 + the largest phase of: tables 0.40, bands 0.80, image 0.17 GiB)'``."""
+        return (f"{self.total / GIB:.2f} GiB (base {self.base / GIB:.2f} + the largest phase of: tables "
+                f"{self.tables / GIB:.2f}, bands {self.bands / GIB:.2f}, image {self.image / GIB:.2f} GiB)")
+
+
+def _n_solver_wavelengths(n_wavelengths: int, wavelengths_nm, step_nm: float) -> int:
+    """How many wavelengths the multiple-scattering solver uses (an evenly spaced grid
+    over the tabulated range when ``wavelengths_nm`` is not given)."""
+    import numpy as np
+
+    from skymodel.render.marcher import solver_wavelengths
+    from skymodel.wavelengths import default_wavelengths
+
+    if wavelengths_nm is None:
+        lo, hi = default_wavelengths()[[0, -1]]
+        wavelengths_nm = np.linspace(lo, hi, max(int(n_wavelengths), 1))
+    return int(solver_wavelengths(np.asarray(wavelengths_nm, dtype=float), step_nm).size)
+
+
+def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=None, *, wavelengths_nm=None,
+                           n_pixels: int | None = None, image_channels: int | None = None) -> MemoryEstimate:
+    """Estimated peak resident memory of rendering ``width x height`` pixels at
+    ``n_wavelengths`` wavelengths with ``quality`` (a preset name, a MarchSettings, or
+    None for the default quality); ``wavelengths_nm`` (optional) gives the solver's
+    wavelength count exactly; ``n_pixels`` the pixels marched (default all);
+    ``image_channels`` the values kept per pixel (default ``n_wavelengths``: the spectral
+    cube; 3 for a render reduced to colour band by band)."""
+    from skymodel.render.quality import quality_settings
+
+    s = quality_settings(quality)
+    w, h, n_wl = int(width), int(height), int(n_wavelengths)
+    pixels = w * h if n_pixels is None else int(n_pixels)
+    n_ms = _n_solver_wavelengths(n_wl, wavelengths_nm, s.ms_wavelength_step_nm)
+    transport = (s.table_altitudes * s.table_mu) ** 2 * n_ms * 8.0
+    sun_build = SUN_TABLE_BYTES_PER_SAMPLE * s.sun_table_altitudes * s.sun_table_x * s.sun_table_steps
+    tables = max(sun_build, SOLVE_BYTES + TRANSPORT_COPIES * transport)
+    grid_dirs = 0 if s.exact else (s.grid_zenith + s.grid_zenith_ground) * s.grid_azimuth
+    kept = KEPT_TABLES * transport + grid_dirs * n_wl * 8 * 3
+    per_direction = s.view_steps * n_wl * 8.0  # one float64 band array per marched direction
+    marched = max(min(s.chunk, max(pixels if s.exact else grid_dirs, 1)), 1)
+    bands = kept + BAND_COPIES * marched * per_direction
+    cube = w * h * (n_wl if image_channels is None else int(image_channels)) * 8.0
+    # with a direction grid the pixels near the sun are still marched, in bands, while the
+    # three parts of the cube are held (a hemisphere camera: up to 1 - cos(sun_exact) of them)
+    near = pixels if s.exact else math.ceil(pixels * (1.0 - math.cos(math.radians(s.sun_exact_deg))))
+    image = kept + max(IMAGE_COPIES * cube, 3 * cube + BAND_COPIES * min(s.chunk, near) * per_direction)
+    return MemoryEstimate(int(BASE_BYTES), int(tables), int(bands), int(image))
+
+
+def limit_bytes(max_memory_gib=None) -> float:
+    """The limit [bytes] of ``max_memory_gib`` (None: the registry's default), checked
+    against the ``max_memory`` parameter of :mod:`skymodel.scene`."""
+    gib = scene.check("max_memory", scene.default("max_memory") if max_memory_gib is None else max_memory_gib)
+    return float(gib) * GIB
+
+
+def check_render_memory(width: int, height: int, n_wavelengths: int, quality=None, max_memory_gib=None, *,
+                        wavelengths_nm=None, image_channels: int | None = None) -> MemoryEstimate:
+    """The estimate (:func:`estimate_render_memory`), or :class:`SkymodelInputError`
+    naming ``max_memory`` when it exceeds ``max_memory_gib`` [GiB] (None: the default)."""
+    limit = limit_bytes(max_memory_gib)
+    est = estimate_render_memory(width, height, n_wavelengths, quality, wavelengths_nm=wavelengths_nm,
+                                 image_channels=image_channels)
+    if est.total > limit:
+        gib = limit / GIB
+        raise SkymodelInputError(
+            "max_memory", float(f"{gib:.6g}"),
+            f"at least {est.gib:.2f} GiB for {int(width)}x{int(height)} px x {int(n_wavelengths)} wavelengths "
+            f"at this quality: the estimate is {est.text()}; give a smaller image, a coarser wavelength step or "
+            f"a lower quality, or raise the limit ({scene.parameter('max_memory').flag})")
+    return est

@@ -1,0 +1,277 @@
+"""Property tests over the public entry points (issue 22): any input either gives a finite,
+non-negative answer of the right shape or raises :class:`SkymodelInputError` naming the
+parameter, before any work (a refusal takes under a second). Few examples and tiny
+sizes keep them fast; benchmarks/bench_reliability.py runs the wider table of cases
+(docs/reliability.md)."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from skymodel import scene
+from skymodel.errors import SkymodelInputError
+from skymodel.render.marcher import MarchSettings
+
+FAST = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+#: Tables small enough that a render of a few pixels takes milliseconds (stability, not accuracy).
+TINY = MarchSettings(view_steps=12, orders=2, table_altitudes=8, table_mu=8, table_phi=4, table_mus=8,
+                     table_steps=12, sun_table_altitudes=16, sun_table_x=16, sun_table_steps=24, grid_zenith=8,
+                     grid_zenith_ground=4, grid_azimuth=5, spherical_orders=0, peak_aureole=False)
+WL = [450.0, 550.0, 650.0]
+
+#: Anything a user might pass: numbers (NaN, infinities, huge), text, booleans, None, lists.
+anything = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True), st.integers(min_value=-10**12, max_value=10**12),
+    st.text(max_size=8), st.booleans(), st.none(), st.lists(st.floats(-1e3, 1e3), max_size=3),
+    st.sampled_from(["nan", "inf", "-1", "1e309", "", " ", "0x10", "5", "16.9"]))
+
+
+def run_cli(argv) -> int:
+    """``skymodel argv`` in-process: its exit status (argparse's usage errors exit by SystemExit)."""
+    from skymodel.cli import main
+
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
+def _refused_quickly(fn, names):
+    """Run ``fn``; if it raises, it must be a SkymodelInputError naming one of ``names``
+    within a second. Returns the result, or None when refused."""
+    t0 = time.perf_counter()
+    try:
+        return fn()
+    except SkymodelInputError as exc:
+        assert exc.parameter in names, (exc.parameter, names, str(exc))
+        assert time.perf_counter() - t0 < 1.0, f"refusal took {time.perf_counter() - t0:.2f} s"
+        return None
+
+
+# ---------------------------------------------------------------------------- the registry
+
+
+@FAST
+@given(name=st.sampled_from(sorted(scene.PARAMETERS)), value=anything)
+def test_every_parameter_check_accepts_in_range_or_names_itself(name, value):
+    p = scene.parameter(name)
+    got = _refused_quickly(lambda: p.check(value), {name})
+    if got is None:
+        return
+    if p.choices:
+        assert got in p.choices
+    elif p.is_number:
+        assert not isinstance(value, bool)
+        assert math.isfinite(got) or (p.maximum is None and got == math.inf)
+        assert p.minimum is None or got >= p.minimum
+        assert p.maximum is None or got <= p.maximum
+        if p.integer:
+            assert isinstance(got, int) and float(value) == got  # 16.9 is never truncated to 16
+
+
+# ---------------------------------------------------------------------------- Atmosphere
+
+ATMOSPHERE_KEYS = ("month", "aod550", "turbidity", "ozone_du", "albedo", "n_altitudes", "stratospheric", "aerosol")
+
+
+@FAST
+@given(key=st.sampled_from(ATMOSPHERE_KEYS),
+       value=st.one_of(anything, st.floats(-2, 1100), st.integers(-5, 500), st.sampled_from(
+           ["rural", "urban", "desert_dust", "none", "volcanic", "maritime"])))
+def test_atmosphere_gives_a_finite_profile_or_names_the_parameter(key, value):
+    from skymodel import Atmosphere
+
+    atm = _refused_quickly(lambda: Atmosphere(**{key: value}), {key})
+    if atm is None:
+        return
+    prof = atm.optical_profile(WL)
+    for arr in (prof.rayleigh_scattering, prof.ozone_absorption, prof.aerosol_scattering_by_regime,
+                prof.aerosol_absorption, prof.solar_irradiance, prof.ground_albedo):
+        a = np.asarray(arr)
+        assert np.all(np.isfinite(a)) and np.all(a >= 0)
+
+
+@FAST
+@given(lat=anything, lon=anything)
+def test_custom_place_latitude_longitude(lat, lon):
+    from skymodel import Atmosphere
+
+    atm = _refused_quickly(lambda: Atmosphere(latitude=lat, longitude=lon, aerosol="rural"),
+                           {"latitude", "longitude", "location"})  # location: only one of the two given
+    if atm is not None:
+        assert -90 <= atm.latitude <= 90 and -180 <= atm.longitude <= 180
+        assert not isinstance(lat, bool) and not isinstance(lon, bool)
+
+
+# ---------------------------------------------------------------------------- wavelengths
+
+
+@FAST
+@given(values=st.one_of(anything, st.lists(st.one_of(st.floats(300, 900), st.integers(300, 900), st.text(max_size=3)),
+                                           min_size=1, max_size=5)))
+def test_as_wavelengths_is_ascending_in_range_or_refused(values):
+    from skymodel.wavelengths import as_wavelengths
+
+    wl = _refused_quickly(lambda: as_wavelengths(values), {"wavelengths"})
+    if wl is not None:
+        assert wl.ndim == 1 and np.all(np.isfinite(wl)) and np.all(np.diff(wl) > 0)
+        assert wl.min() >= 380 and wl.max() <= 780
+
+
+@FAST
+@given(step=anything)
+def test_default_wavelengths_step(step):
+    from skymodel.wavelengths import default_wavelengths
+
+    wl = _refused_quickly(lambda: default_wavelengths(step), {"step_nm"})
+    if wl is not None:
+        assert not isinstance(step, (str, bool)) and wl[0] == 380 and wl[-1] <= 780 and np.all(np.diff(wl) > 0)
+
+
+# ---------------------------------------------------------------------------- render_sky
+
+
+@pytest.fixture(scope="module")
+def tiny_scene():
+    from skymodel import Atmosphere
+    from skymodel.render.cameras import make_camera
+
+    return Atmosphere().optical_profile(WL), make_camera("equirectangular", 8, 4, n_wavelengths=len(WL))
+
+
+number_or_junk = st.one_of(st.floats(-200, 200), st.floats(-2e5, 2e5), anything)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(elevation=number_or_junk, azimuth=number_or_junk, altitude=st.one_of(st.floats(-10, 1.3e5), anything))
+def test_render_sky_is_finite_non_negative_or_refused_before_the_march(tiny_scene, elevation, azimuth, altitude):
+    from skymodel.render.sky import render_sky
+
+    profile, camera = tiny_scene
+    img = _refused_quickly(lambda: render_sky(profile, camera, elevation, azimuth, altitude, TINY),
+                           {"sun_elevation", "sun_azimuth", "observer_altitude"})
+    if img is None:
+        return
+    assert -12 <= float(elevation) <= 90  # no hidden clamp: below -12 is refused
+    assert img.radiance.shape == camera.shape + (len(WL),)
+    assert np.all(np.isfinite(img.radiance)) and np.all(img.radiance >= 0)
+
+
+def test_render_sky_refuses_a_render_over_the_memory_limit(tiny_scene):
+    from skymodel.render.sky import render_sky
+
+    profile, camera = tiny_scene
+    t0 = time.perf_counter()
+    with pytest.raises(SkymodelInputError) as e:
+        render_sky(profile, camera, 30.0, quality="reference", max_memory_gib=0.5)
+    assert e.value.parameter == "max_memory" and "GiB" in str(e.value) and "tables" in str(e.value)
+    assert time.perf_counter() - t0 < 1.0
+    for bad in (0, -1, float("nan"), "lots", True):
+        with pytest.raises(SkymodelInputError) as e:
+            render_sky(profile, camera, 30.0, quality=TINY, max_memory_gib=bad)
+        assert e.value.parameter == "max_memory"
+
+
+# ---------------------------------------------------------------------------- the sun
+
+
+@FAST
+@given(time_utc=st.one_of(st.text(max_size=25), st.datetimes().map(lambda d: d.isoformat()),
+                          st.sampled_from(["2026-06-21T12:00+02:00", "2026-06-21T12:00Z", "1800-01-01T12:00",
+                                           "2026-13-01T00:00", "2026-06-21T25:00"])),
+       lat=st.floats(-90, 90), lon=st.floats(-180, 180))
+def test_place_sun_from_a_time(time_utc, lat, lon):
+    sun = _refused_quickly(lambda: scene.place_sun(lat, lon, time_utc), {"time_utc", "timezone"})
+    if sun is not None:
+        assert -12 <= sun.elevation_deg <= 90 and 0 <= sun.azimuth_deg < 360
+
+
+# ---------------------------------------------------------------------------- the command line
+
+#: Number parameters with a command-line flag used by ``skymodel profile`` / ``render``.
+CLI_NUMBERS = ["latitude", "longitude", "month", "aod550", "turbidity", "ozone_du", "albedo", "n_altitudes",
+               "sun_elevation", "sun_azimuth", "observer_altitude", "wavelength_step", "exposure_ev", "max_memory"]
+
+
+def _outside(p):
+    """Values the parameter must refuse."""
+    bad = [st.sampled_from(["nan", "inf", "-inf", "abc", ""])]
+    if p.minimum is not None:
+        bad.append(st.floats(p.minimum - 1e6, p.minimum, exclude_max=not p.exclusive_minimum).map(repr))
+    if p.maximum is not None:
+        bad.append(st.floats(p.maximum, p.maximum + 1e6, exclude_min=True).map(repr))
+    if p.integer:
+        bad.append(st.floats(p.minimum + 0.1, p.minimum + 0.9).map(repr))
+    return st.one_of(*bad)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data(), name=st.sampled_from(CLI_NUMBERS))
+def test_render_refuses_out_of_range_options_in_one_line_before_work(data, name, tmp_path_factory, capsys):
+    p = scene.parameter(name)
+    value = data.draw(_outside(p))
+    out = tmp_path_factory.mktemp("render") / "sky.exr"
+    extra = ["--lat", "10", "--lon", "10", "--aerosol", "rural"] if name in ("latitude", "longitude") else []
+    t0 = time.perf_counter()
+    code = run_cli(["render", "--size", "8", "--quiet", "--out", str(out), *extra, f"{p.flag}={value}"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2, err
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert time.perf_counter() - t0 < 1.0
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("argv, word", [
+    (["compare", "--quality", "foo"], "quality"),
+    (["profile", "--layers", "0"], "layers"),
+    (["profile", "--layers", "100000"], "layers"),
+    (["radiance", "--view-zenith", ""], "view_zenith"),
+    (["radiance", "--view-zenith", "nan"], "view_zenith"),
+    (["radiance", "--wavelengths", "550,550"], "wavelengths"),
+    (["render", "--exposure", "nan"], "exposure_ev"),
+    (["render", "--exposure", "65"], "exposure_ev"),
+    (["render", "--max-memory", "0"], "max_memory"),
+    (["render", "--size", "2400x1200", "--wavelength-step", "10", "--spectral", "{tmp}/x.npz"], "max_memory"),
+    (["render", "--max-memory", "0.01"], "max_memory"),
+])
+def test_issue_cases_fail_the_command(argv, word, capsys, tmp_path):
+
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    if argv[0] in ("render", "compare"):
+        argv = argv + ["--out", str(tmp_path / ("x.exr" if argv[0] == "render" else "x.png"))]
+    t0 = time.perf_counter()
+    code = run_cli(argv)
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and word in err and len(err.splitlines()) == 1, err
+    assert time.perf_counter() - t0 < 1.0
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_time_with_an_offset_prints_no_warning(recwarn, capsys):
+
+    assert run_cli(["sun", "--lat", "40", "--lon", "-3", "--time", "2026-06-21T12:00+02:00", "--json"]) == 0
+    assert not [w for w in recwarn if issubclass(w.category, UserWarning)]
+    assert capsys.readouterr().err == ""
+
+
+# ---------------------------------------------------------------------------- writers
+
+
+def test_writers_refuse_negative_or_non_finite_radiance(tmp_path):
+    from skymodel.render import image_io
+    from skymodel.render.cameras import make_camera
+
+    cam = make_camera("equirectangular", 8, 4, n_wavelengths=3)
+    for bad in (-1e-6, np.nan, np.inf):
+        rad = np.full((4, 8, 3), 0.01)
+        rad[1, 2, 1] = bad
+        with pytest.raises(SkymodelInputError) as e:
+            image_io.save_outputs(out=str(tmp_path / "a.exr"), radiance=rad, wavelengths=np.array(WL), camera=cam)
+        assert e.value.parameter == "radiance"
+    assert list(tmp_path.iterdir()) == []
