@@ -12,9 +12,9 @@ computations) can be used and tested without Blender.
 
 
 def _modules():
-    from . import ops, props, ui
+    from . import animation, ops, props, ui
 
-    return (props, ops, ui)
+    return (props, ops, animation, ui)
 
 
 def register():

@@ -296,6 +296,9 @@ def remove_all(scene, world):
     """Remove every node, object and datablock of the add-on from this scene and world
     (the Remove Sky operator); relinks the world surface the add-on replaced and puts back
     the settings the build changed (:func:`restore_settings`)."""
+    from . import animation
+
+    animation.remove_bake(scene)  # a baked time of day: its exposure keys and images
     restore_settings(scene)
     tree = world.node_tree if world is not None else None
     prev = world.get(PREVIOUS_SURFACE) if world is not None else None
@@ -506,6 +509,9 @@ def build(scene, world, settings, result, add_content) -> str:
         tx.rollback()
         raise
     remove_previous(scene, world, tx.build_id)
+    from . import animation
+
+    animation.remove_bake(scene, keep_build=tx.build_id)  # a bake this build replaced
     commit_names(tx)
     return tx.build_id
 

@@ -97,6 +97,10 @@ def draw_settings(layout, context):
     else:
         box.label(text="Not built yet", icon="INFO")
 
+    from . import animation
+
+    animation.draw_panel(layout, context)  # Time of Day: Animate Day, Bake Time of Day
+
 
 def draw_plan(layout, context, s):
     """Auto mode: the effect planner's decisions and reasons, and the overrides."""

@@ -399,7 +399,7 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
                        quality: str = "preview", width: int = 0, wavelength_step_nm: float | None = None,
                        orders: int | None = None, earth_shadow: bool = True, include_sun: bool = False,
                        time_iso: str | None = None, sky_model: str = OWN_MODEL, model_radiance=None,
-                       cache_dir=None, progress=None):
+                       cache_dir=None, progress=None, solutions=None):
     """Render (or reuse) the equirectangular sky of ``atmosphere`` and the sun.
 
     Parameters
@@ -431,6 +431,9 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
         Where the EXR and its JSON go (:func:`default_cache_dir` when None).
     progress : callable or None
         Called with one line of text per stage.
+    solutions : skymodel.render.sequence.SolutionCache or None
+        Where the multiple-scattering solve comes from (our model): the frames of a
+        sequence share it (the add-on's Bake Time of Day); None solves for this image.
 
     Returns
     -------
@@ -470,13 +473,14 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
             settings = dataclasses.replace(render_sky.quality_settings(quality),
                                            orders=int(orders) or None if orders is not None else None,
                                            earth_shadow=bool(earth_shadow))
+        solution = None if solutions is None else solutions.get(prof, settings, progress=_Orders(progress))
         if banded:
             rgb, sun_irradiance, _ = render_sky.render_sky_reduced(
                 prof, cam, sun_elevation_deg, reduce_to_rgb, 3, sun_azimuth_deg, observer_altitude_m, settings,
-                progress=_Orders(progress))
+                progress=_Orders(progress), solution=solution)
         else:
             img = render_sky.render_sky(prof, cam, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
-                                        include_sun=include_sun, progress=_Orders(progress))
+                                        include_sun=include_sun, progress=_Orders(progress), solution=solution)
             rgb, sun_irradiance = reduce_to_rgb(img.radiance, wl), img.sun_irradiance
     else:
         radiance, sun_irradiance = model_radiance(cam, wl, include_sun)

@@ -1,0 +1,184 @@
+"""Animated time of day in Blender (issue #19): Animate Day, Bake Time of Day (headless bpy).
+
+Tiny images (environment 32x16, renders 32x16) and the preview preset with small tables,
+so the file runs in about a minute on 2 cores."""
+
+import math
+import os
+import tempfile
+
+import pytest
+
+os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="skymodel-blender-user-"))
+os.environ.setdefault("SKYMODEL_CACHE_DIR", tempfile.mkdtemp(prefix="skymodel-cache-"))
+
+bpy = pytest.importorskip("bpy")
+import numpy as np  # noqa: E402
+
+
+pytestmark = pytest.mark.blender
+
+LUMA = np.array([0.2126, 0.7152, 0.0722])
+ZARAGOZA = (41.65, -0.88)
+
+
+@pytest.fixture
+def small_preview(monkeypatch):
+    from dataclasses import replace
+
+    from skymodel.render.quality import QUALITIES
+
+    q = QUALITIES["preview"]
+    small = replace(q.settings, table_altitudes=10, table_mu=12, table_phi=6, table_mus=10, table_steps=16,
+                    sun_table_altitudes=24, sun_table_x=32, sun_table_steps=32, grid_zenith=16,
+                    grid_zenith_ground=6, grid_azimuth=9, max_orders=4)
+    monkeypatch.setitem(QUALITIES, "preview", replace(q, settings=small))
+
+
+@pytest.fixture
+def day(new_sky_scene, small_preview, monkeypatch, tmp_path):
+    """Zaragoza, 2026-06-21, 20:00 .. 21:30 CEST every 45 min keyframed (3 frames)."""
+    from blender_addon import animation
+
+    monkeypatch.setenv("SKYMODEL_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(animation, "CANCEL_AT", None)
+    sc = new_sky_scene(image_width=32, location="zaragoza")
+    frames = animation.animate_day(sc, sc.world.skymodel, "2026-06-21", "20:00", "21:30", "45min", "Europe/Madrid")
+    return sc, frames
+
+
+def _pixels(path):
+    img = bpy.data.images.load(str(path), check_existing=False)
+    try:
+        w, h = img.size
+        px = np.empty(w * h * 4, np.float32)
+        img.pixels.foreach_get(px)
+        return px.reshape(h, w, 4)[::-1, :, :3].copy()  # Blender's rows start at the bottom
+    finally:
+        bpy.data.images.remove(img)
+
+
+def test_animate_day_keyframes_local_times_as_utc(day):
+    sc, frames = day
+    s = sc.world.skymodel
+    assert (sc.frame_start, sc.frame_end) == (1, 3)
+    assert [f.time_local[11:16] for f in frames] == ["20:00", "20:45", "21:30"]
+    sc.frame_set(2)
+    assert (s.year, s.month, s.day, s.hour, s.minute) == (2026, 6, 21, 18, 45)  # 20:45 CEST
+    sc.frame_set(1)
+
+
+def test_baked_day_follows_the_frame_and_matches_the_core(day, tmp_path):
+    from blender_addon import animation, physics
+    from skymodel.render import environment
+
+    sc, frames = day
+    s = sc.world.skymodel
+    result = animation.bake(bpy.context, folder=str(tmp_path / "bake"))
+    assert result["frames"] == 3
+    folder = tmp_path / "bake" / os.path.basename(result["folder"])
+    assert sorted(p.name for p in folder.iterdir()) == ["sky_0001.exr", "sky_0002.exr", "sky_0003.exr"]
+    # each baked image equals the core's environment image of its instant, rendered alone
+    for k, f in enumerate(frames, start=1):
+        sc.frame_set(k)
+        sky = physics.resolve(s.to_params())
+        assert sky.time_iso == f.time_utc
+        _, alone = environment.render_environment(
+            sky.atmosphere, sky.sun_elevation_deg, sky.sun_azimuth_deg,
+            earth_sun_distance_au=sky.earth_sun_distance_au, quality="preview", width=32,
+            time_iso=sky.time_iso, cache_dir=tmp_path / f"alone{k}")
+        assert np.array_equal(_pixels(folder / f"sky_{k:04d}.exr"), _pixels(alone.image_path)), k
+    # the lamp at the middle frame points where the core puts the sun
+    sc.frame_set(2)
+    lamp = next(o for o in sc.objects if o.type == "LIGHT")
+    bpy.context.view_layer.update()
+    to_sun = np.array(lamp.matrix_world.to_3x3().col[2][:])
+    el, az = math.radians(frames[1].elevation_deg), math.radians(frames[1].azimuth_deg)
+    want = np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)])
+    assert math.degrees(math.acos(np.clip(to_sun @ want, -1.0, 1.0))) < 1e-3
+    # the exposure and the lamp follow the frames
+    exposures, strengths = [], []
+    for k in (1, 3):
+        sc.frame_set(k)
+        exposures.append(sc.view_settings.exposure)
+        strengths.append(lamp.data.energy)
+    assert exposures[1] > exposures[0] + 0.5 and strengths[1] < strengths[0] / 2
+    # F12 at frame 1 and frame 3: the world shows each frame's own image
+    renders = {k: _render(sc, k) for k in (1, 3)}
+    for k, img in renders.items():
+        baked = _pixels(folder / f"sky_{k:04d}.exr")
+        ratio = (img[:8] @ LUMA).mean() / (baked[:8] @ LUMA).mean()
+        assert abs(ratio - 1.0) < 0.05, (k, ratio)
+    assert (renders[3][:8] @ LUMA).mean() < 0.5 * (renders[1][:8] @ LUMA).mean()
+    assert animation.stale_frames(sc) == []
+    sc.frame_set(2)
+    s.minute = 50
+    s.keyframe_insert("minute", frame=2)
+    assert animation.stale_frames(sc) == [2]
+
+
+def _render(sc, frame):
+    from blender_addon.render import render_linear
+
+    cd = bpy.data.cameras.get("Test Camera") or bpy.data.cameras.new("Test Camera")
+    cd.type = "PANO"
+    cd.panorama_type = "EQUIRECTANGULAR"
+    cam = bpy.data.objects.get("Test Camera") or bpy.data.objects.new("Test Camera", cd)
+    if cam.name not in sc.collection.objects:
+        sc.collection.objects.link(cam)
+    sc.camera = cam
+    cam.rotation_euler = (math.radians(90.0), 0.0, -math.radians(90.0))  # centred on east, as the image
+    sc.render.engine = "CYCLES"
+    sc.cycles.device = "CPU"
+    sc.cycles.samples = 4
+    sc.cycles.use_denoising = False
+    sc.render.resolution_x, sc.render.resolution_y = 32, 16
+    sc.render.resolution_percentage = 100
+    sc.frame_set(frame)
+    return render_linear(sc)
+
+
+def _snapshot(sc):
+    d = {kind: sorted(db.name for db in getattr(bpy.data, kind)) for kind in ("objects", "lights", "images", "actions")}
+    d["nodes"] = sorted(n.name for n in sc.world.node_tree.nodes)
+    d["keys"] = sorted(sc.keys())
+    d["exposure"] = sc.view_settings.exposure
+    d["frame"] = sc.frame_current
+    return d
+
+
+def test_a_cancelled_or_refused_bake_leaves_the_scene_unchanged(day, tmp_path, monkeypatch):
+    from blender_addon import animation
+    from skymodel.errors import SkymodelInputError
+
+    sc, _ = day
+    before = _snapshot(sc)
+    monkeypatch.setattr(animation, "CANCEL_AT", 2)
+    with pytest.raises(animation.BakeCancelled):
+        animation.bake(bpy.context, folder=str(tmp_path / "bake"))
+    assert _snapshot(sc) == before
+    assert not (tmp_path / "bake").exists() or not any((tmp_path / "bake").iterdir())
+    # a frame at night is refused before any rendering, naming the frame
+    monkeypatch.setattr(animation, "CANCEL_AT", None)
+    sc.frame_end = 4
+    s = sc.world.skymodel
+    s.hour, s.minute = 23, 59  # 01:59 CEST: night
+    s.keyframe_insert("hour", frame=4)
+    s.keyframe_insert("minute", frame=4)
+    with pytest.raises(SkymodelInputError, match="frame 4"):
+        animation.bake(bpy.context, folder=str(tmp_path / "bake"))
+    assert not (tmp_path / "bake").exists() or not any((tmp_path / "bake").iterdir())
+
+
+def test_remove_sky_after_a_bake_removes_the_exposure_keys_and_images(day, tmp_path):
+    from blender_addon import animation
+
+    sc, _ = day
+    exposure_before = sc.view_settings.exposure
+    r = animation.bake(bpy.context, folder=str(tmp_path / "bake"))
+    assert os.path.isdir(r["folder"])
+    assert bpy.ops.skymodel.remove_sky() == {"FINISHED"}
+    assert animation.bake_record(sc) is None and not os.path.isdir(r["folder"])
+    assert not [db for db in bpy.data.images if db.name.startswith(animation.SEQUENCE_NAME)]
+    sc.frame_set(3)
+    assert sc.view_settings.exposure == pytest.approx(exposure_before)
