@@ -184,8 +184,11 @@ def test_paper_lookup_reproduces():
     lk = load_npz(aerosols.MODELS["guimera2018"][1])
     names = [str(n) for n in lk["components"]]
     col = int(np.flatnonzero(lk["wavelengths_nm"] == 540.0)[0])
-    new = mie_lookup.build_paper_tables(["urban:soot", "marine:sea_salt"], [540.0])
-    for i, name in enumerate(["urban:soot", "marine:sea_salt"]):
+    # a fine, a marine, and the two coarse entries that take the large-particle limit (the desert
+    # coarse mode, x up to 580 at 540 nm, and the polar 8.6 um mode): about 4 s
+    entries = ["urban:soot", "marine:sea_salt", "desert:mineral", "polar:sea_salt"]
+    new = mie_lookup.build_paper_tables(entries, [540.0])
+    for i, name in enumerate(entries):
         c = names.index(name)
         for key in ("ext", "sca", "g", "phase"):
             assert np.allclose(new[key][i], lk[key][c][..., [col]], rtol=1e-6, atol=0), (name, key)

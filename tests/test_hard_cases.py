@@ -308,8 +308,11 @@ def test_extreme_aerosol_loads_real_types(model):
     albedo at 450 / 650 nm: urban 0.68 / 0.65 with a 1.6x larger optical depth at 450,
     desert dust 0.83 / 0.90), and in a thick layer the diffuse light decays as
     exp(-sqrt(3 (1 - ssa)(1 - g)) tau), so the zenith turns red-brown (ratio 450/650,
-    relative to the sun's, below 1) as in heavy smog or a dust storm. The grey limit of
-    a spectrally flat, conservative aerosol is the next test."""
+    relative to the sun's, below 1) as in heavy smog or a dust storm. The paper's desert
+    (Jaenicke's coarse dust) absorbs about as much in the blue as in the red (ssa 0.56 /
+    0.57 at 450 / 650 nm, g 0.94): its thick sky turns a dim grey instead (|log ratio| < 0.1
+    at AOD 10, measured +0.03). The grey limit of a spectrally flat, conservative aerosol is
+    the next test."""
     from skymodel import Atmosphere
 
     d = dirs([0.0, 60.0, 85.0, 120.0], [0.0, 0.0, 180.0, 0.0])
@@ -327,7 +330,11 @@ def test_extreme_aerosol_loads_real_types(model):
         assert np.all(np.array(direct[-1]) < 1e-3 * np.array(direct[0]))  # tau ~ 20 slant: beam gone
         colour = [np.log(z[0] / z[2]) for z in zenith]  # > 0 blue, < 0 red
         assert colour[0] > 0.5, loc  # AOD 0.1: a blue sky
-        assert colour[0] > colour[1] > colour[2] and colour[2] < 0, (loc, colour)
+        assert colour[0] > colour[1] > colour[2], (loc, colour)
+        if model == "guimera2018" and loc == "desert":
+            assert abs(colour[2]) < 0.1, (loc, colour)  # grey: its absorption is flat in wavelength
+        else:
+            assert colour[2] < 0, (loc, colour)
 
 
 def test_thick_aerosol_scattering_orders_are_complete():
@@ -353,16 +360,21 @@ def test_dense_layer_order_series_converges():
     some grid rays gather 15-35 times the light a ray can carry (the exact value is
     < 1), so every scattering order came out larger than the last and the sky reached
     8 times the solar irradiance. Now each order is smaller than the last, the series
-    converges, and the sky stays below E_sun per steradian."""
-    p = _typed_profile("background", 5.0)
-    m = SkyMarcher(p, 0.0, 180.0, 0.0, replace(SMALL, max_orders=60))
-    c = m.field.order_contributions
-    assert m.field.orders < 60 and c[-1] < 1e-3
-    assert all(b < a for a, b in zip(c[3:], c[4:]))
-    d = dirs([0.0, 30.0, 60.0, 85.0], [0.0, 90.0, 0.0, 0.0])
-    r = m.radiance(d)
-    check_physical(r)
-    assert np.all(r.radiance < p.solar_irradiance)
+    converges, and the sky stays below E_sun per steradian. The OPAC background (ssa 0.96)
+    converges within 60 orders; the paper's (Jaenicke's free troposphere as sulfuric acid,
+    ssa 1.000, conservative) decays more slowly, and the solver adds the rest of the series
+    geometrically, so only the decrease and the bounds are asserted for it."""
+    for model in ("opac", "guimera2018"):
+        p = _typed_profile("background", 5.0, model)
+        m = SkyMarcher(p, 0.0, 180.0, 0.0, replace(SMALL, max_orders=60))
+        c = m.field.order_contributions
+        if model == "opac":
+            assert m.field.orders < 60 and c[-1] < 1e-3
+        assert all(b < a for a, b in zip(c[3:], c[4:])), model
+        d = dirs([0.0, 30.0, 60.0, 85.0], [0.0, 90.0, 0.0, 0.0])
+        r = m.radiance(d)
+        check_physical(r)
+        assert np.all(r.radiance < p.solar_irradiance), model
 
 
 def test_thick_flat_aerosol_makes_the_sky_grey():
@@ -474,13 +486,14 @@ def test_single_wavelength_and_2nm_grids():
 _TYPE_CACHE: dict = {}
 
 
-def _typed_profile(kind, aod):
+def _typed_profile(kind, aod, model=None):
     from skymodel import Atmosphere
+    from skymodel.scene import default
 
-    key = (kind, aod)
+    key = (kind, aod, model)
     if key not in _TYPE_CACHE:
-        _TYPE_CACHE[key] = Atmosphere(latitude=45.0, longitude=0.0, aerosol=kind, month=6,
-                                      aod550=aod).optical_profile((450.0, 650.0))
+        _TYPE_CACHE[key] = Atmosphere(latitude=45.0, longitude=0.0, aerosol=kind, month=6, aod550=aod,
+                                      aerosol_model=model or default("aerosol_model")).optical_profile((450.0, 650.0))
     return _TYPE_CACHE[key]
 
 
