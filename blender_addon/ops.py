@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import os
+import threading
 import time
 import traceback
+from dataclasses import dataclass
 from pathlib import Path
 
 import bpy
@@ -60,12 +62,26 @@ def cache_dir() -> Path:
         return physics.default_cache_dir()
 
 
-def build(context, settings=None, progress=None):
-    """Build the sky of ``context.scene.world`` (used by the operator and by
-    ``render.py``); raises on bad input or failure, leaving the scene untouched."""
+class BuildCancelled(Exception):
+    """Raised inside a build's computation when the user cancelled it (Esc)."""
+
+
+@dataclass
+class Prepared:
+    """What the main thread hands the computation: validated, bpy-free (see :func:`prepare`)."""
+
+    sky: object
+    mode: str
+    cache: Path
+    auto_info: dict | None
+    t0: float
+
+
+def prepare(context, settings=None, progress=None) -> Prepared:
+    """Main thread: read the panel (and, in Auto mode, the scene for the planner), validate
+    through the core, place the sun. Raises ``SkymodelInputError`` naming the parameter."""
     scene = context.scene
-    world = scene.world
-    settings = settings or world.skymodel
+    settings = settings or scene.world.skymodel
     t0 = time.perf_counter()
     params = settings.to_params()
     auto_info = None
@@ -84,27 +100,132 @@ def build(context, settings=None, progress=None):
     if progress:
         progress(f"sun elevation {sky.sun_elevation_deg:.2f}°, azimuth {sky.sun_azimuth_deg:.2f}°"
                  + (f" ({sky.time_iso})" if sky.time_iso else ""))
-    if params.mode == "ENVIRONMENT":
-        _, result = physics.render_environment(sky, cache_dir(), progress)
+    return Prepared(sky, params.mode, cache_dir(), auto_info, t0)
+
+
+def compute(prep: Prepared, progress=None):
+    """The physics (no bpy: safe in a background thread): the sky image or the volume layers."""
+    if prep.mode == "ENVIRONMENT":
+        _, result = physics.render_environment(prep.sky, prep.cache, progress)
     else:
         from . import volumetric
 
-        result = volumetric.compute(sky, cache_dir(), progress)
+        result = volumetric.compute(prep.sky, prep.cache, progress)
     result.info = dict(result.info)  # not the cached entry's dict
-    if auto_info:
-        result.info["auto"] = auto_info["auto"]
-        result.info["warnings"] = list(result.info.get("warnings", ())) + auto_info["warnings"]
-    result.info["total_s"] = time.perf_counter() - t0
-    if params.mode == "ENVIRONMENT":
-        builder.apply_environment(scene, world, settings, result, progress)
-    else:
-        volumetric.apply(scene, world, settings, result, progress)
-    result.info["total_s"] = time.perf_counter() - t0
+    if prep.auto_info:
+        result.info["auto"] = prep.auto_info["auto"]
+        result.info["warnings"] = list(result.info.get("warnings", ())) + prep.auto_info["warnings"]
+    result.info["total_s"] = time.perf_counter() - prep.t0
     return result
 
 
+def apply(context, prep: Prepared, result, settings=None, progress=None):
+    """Main thread: put the computed sky into the scene (one transaction: all or nothing)."""
+    scene = context.scene
+    world = scene.world
+    settings = settings or world.skymodel
+    if prep.mode == "ENVIRONMENT":
+        builder.apply_environment(scene, world, settings, result, progress)
+    else:
+        from . import volumetric
+
+        volumetric.apply(scene, world, settings, result, progress)
+    result.info["total_s"] = time.perf_counter() - prep.t0
+    return result
+
+
+def build(context, settings=None, progress=None):
+    """Build the sky of ``context.scene.world`` in one go (the operator's ``execute``, used
+    from scripts, and ``render.py``); raises on bad input or failure, leaving the scene untouched."""
+    if JOB is not None and JOB.running:
+        raise RuntimeError("a sky build is already running (Esc cancels it)")
+    prep = prepare(context, settings, progress)
+    return apply(context, prep, compute(prep, progress), settings, progress)
+
+
+class BuildJob:
+    """One build whose physics runs in a background thread (:func:`compute`), started and
+    finished on the main thread (:func:`prepare`, :func:`apply`). ``cancel()`` makes the
+    computation stop at its next progress step; nothing touches the scene before
+    :meth:`finish`, so a cancelled or failed job leaves it exactly as it was."""
+
+    def __init__(self, context, settings=None):
+        self.lines: list[str] = []
+        self.status = "starting"
+        self.cancelled = threading.Event()
+        self.result = None
+        self.error: BaseException | None = None
+        self.t0 = time.perf_counter()
+        self.prep = prepare(context, settings, self._progress)
+        self.thread = threading.Thread(target=self._run, name="skymodel-build", daemon=True)
+
+    def _progress(self, text: str):
+        if self.cancelled.is_set():
+            raise BuildCancelled("cancelled")
+        line = f"[skymodel {time.perf_counter() - self.t0:6.1f}s] {text}"
+        self.lines.append(line)
+        self.status = text
+        print(line, flush=True)
+
+    def _run(self):
+        try:
+            self.result = compute(self.prep, self._progress)
+            if self.cancelled.is_set():
+                raise BuildCancelled("cancelled")
+        except BaseException as ex:  # reported on the main thread by finish()
+            self.error = ex
+
+    def start(self):
+        self.thread.start()
+        return self
+
+    @property
+    def running(self) -> bool:
+        return self.thread.is_alive()
+
+    def cancel(self):
+        self.cancelled.set()
+        self.status = "cancelling"
+
+    def wait(self, timeout=None) -> bool:
+        self.thread.join(timeout)
+        return not self.thread.is_alive()
+
+    def finish(self, context, settings=None):
+        """Main thread, once the thread is done: apply the result (or re-raise its error;
+        :class:`BuildCancelled` when cancelled, the scene untouched)."""
+        if self.running:
+            raise RuntimeError("the build is still running")
+        if self.cancelled.is_set():
+            raise BuildCancelled("cancelled")
+        if self.error is not None:
+            raise self.error
+        return apply(context, self.prep, self.result, settings, self._progress)
+
+
+#: The build in flight (one at a time), or None.
+JOB: BuildJob | None = None
+
+
+def _report_failure(op, ex) -> None:
+    if isinstance(ex, BuildCancelled) or isinstance(ex, KeyboardInterrupt):
+        op.report({"WARNING"}, "Skymodel: build cancelled, scene unchanged")
+    elif isinstance(ex, SkymodelInputError):
+        op.report({"ERROR"}, f"Skymodel: {ex}")
+    else:  # the scene was rolled back; say what happened
+        traceback.print_exception(type(ex), ex, ex.__traceback__)
+        op.report({"ERROR"}, f"Skymodel: build failed, scene unchanged: {type(ex).__name__}: {ex}")
+
+
+def _report_success(op, result) -> None:
+    op.report({"INFO"}, f"Skymodel: {result.mode.lower()} sky built in {result.info['total_s']:.1f} s"
+              + (" (cached image)" if result.cache_hit else ""))
+    for warning in result.info.get("warnings", ()):
+        op.report({"WARNING"}, f"Skymodel: {warning}")
+
+
 class SKYMODEL_OT_build_sky(bpy.types.Operator):
-    """Compute the sky with the spectral core and put it into the scene (world, sun lamp, volumes)"""
+    """Compute the sky with the spectral core and put it into the scene (world, sun lamp, volumes); Esc cancels"""
 
     bl_idname = "skymodel.build_sky"
     bl_label = "Build Sky"
@@ -114,23 +235,82 @@ class SKYMODEL_OT_build_sky(bpy.types.Operator):
     def poll(cls, context):
         return context.scene is not None and context.scene.world is not None
 
-    def execute(self, context):
+    def execute(self, context):  # scripts and headless: in one go
+        if JOB is not None and JOB.running:
+            self.report({"ERROR"}, "Skymodel: a sky build is already running (Esc cancels it)")
+            return {"CANCELLED"}
         progress = Progress(context)
         try:
             result = build(context, progress=progress)
-        except SkymodelInputError as ex:
-            self.report({"ERROR"}, f"Skymodel: {ex}")
-            return {"CANCELLED"}
-        except Exception as ex:  # the scene was rolled back; say what happened
-            traceback.print_exc()
-            self.report({"ERROR"}, f"Skymodel: build failed, scene unchanged: {type(ex).__name__}: {ex}")
+        except BaseException as ex:
+            _report_failure(self, ex)
             return {"CANCELLED"}
         finally:
             progress.end()
-        self.report({"INFO"}, f"Skymodel: {result.mode.lower()} sky built in {result.info['total_s']:.1f} s"
-                    + (" (cached image)" if result.cache_hit else ""))
-        for warning in result.info.get("warnings", ()):
-            self.report({"WARNING"}, f"Skymodel: {warning}")
+        _report_success(self, result)
+        return {"FINISHED"}
+
+    def invoke(self, context, event):  # the UI: a modal build that never freezes the interface
+        global JOB
+        if JOB is not None and JOB.running:
+            self.report({"ERROR"}, "Skymodel: a sky build is already running" + (
+                " (cancelled, stopping at its next step)" if JOB.cancelled.is_set() else " (Esc cancels it)"))
+            return {"CANCELLED"}
+        if context.window is None or context.window_manager is None:
+            return self.execute(context)
+        try:
+            JOB = BuildJob(context).start()
+        except BaseException as ex:
+            _report_failure(self, ex)
+            return {"CANCELLED"}
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.2, window=context.window)
+        wm.progress_begin(0, 100)
+        wm.modal_handler_add(self)
+        self._status(context, "Skymodel: building the sky (Esc cancels)")
+        return {"RUNNING_MODAL"}
+
+    def _status(self, context, text):
+        try:
+            context.workspace.status_text_set(text)
+        except (AttributeError, RuntimeError):
+            pass
+        for area in getattr(context.screen, "areas", ()):
+            if area.type in ("PROPERTIES", "VIEW_3D", "STATUSBAR"):
+                area.tag_redraw()
+
+    def _end(self, context):
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        self._status(context, None)
+
+    def modal(self, context, event):
+        global JOB
+        job = JOB
+        if job is None:
+            return {"CANCELLED"}
+        if event.type == "ESC" and event.value == "PRESS":
+            # the scene has not been touched: end now; the thread stops at its next step
+            # (JOB stays set until it has, so a new build waits for the CPU to be free)
+            job.cancel()
+            self._end(context)
+            self.report({"WARNING"}, "Skymodel: build cancelled, scene unchanged")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        if job.running:
+            context.window_manager.progress_update(min(99, len(job.lines) * 5))
+            self._status(context, f"Skymodel: {job.status} (Esc cancels)")
+            return {"RUNNING_MODAL"}
+        self._end(context)
+        JOB = None
+        try:
+            result = job.finish(context)
+        except BaseException as ex:
+            _report_failure(self, ex)
+            return {"CANCELLED"}
+        _report_success(self, result)
         return {"FINISHED"}
 
 

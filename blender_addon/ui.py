@@ -83,6 +83,15 @@ def draw_settings(layout, context):
     if s.mode == "AUTO":
         draw_plan(layout, context, s)
 
+    from . import ops
+
+    job = ops.JOB
+    if job is not None and job.running:
+        box = layout.box()
+        box.label(text="Cancelling the build..." if job.cancelled.is_set() else f"Building: {job.status}",
+                  icon="TIME")
+        if not job.cancelled.is_set():
+            box.label(text="Esc cancels (the scene stays as it was)")
     row = layout.row(align=True)
     row.scale_y = 1.4
     row.operator("skymodel.build_sky", icon="WORLD")

@@ -291,8 +291,11 @@ def twilight_warning(sun_elevation_deg: float, n_layers: int) -> str:
     if sun_elevation_deg >= 0.0 or int(n_layers) >= TWILIGHT_MIN_LAYERS:
         return ""
     known = [n for n in sorted(TWILIGHT_LAYER_ERROR) if n <= int(n_layers)]
-    err = (f"about {100 * TWILIGHT_LAYER_ERROR[known[-1]][0]:.0f} % rms, {100 * TWILIGHT_LAYER_ERROR[known[-1]][1]:.0f} % "
-           f"worst at {known[-1]} layers" if known else "more than 30 % worst")
+    if known:
+        rms, worst = TWILIGHT_LAYER_ERROR[known[-1]]
+        err = f"about {100 * rms:.0f} % rms, {100 * worst:.0f} % worst at {known[-1]} layers"
+    else:
+        err = "more than 30 % worst"
     return (f"Twilight: {int(n_layers)} layers carry the sunlit upper air with {err} (sun -4°); use "
             f"{TWILIGHT_MIN_LAYERS}+ layers or Environment mode")
 

@@ -428,3 +428,68 @@ def test_explicit_volumetric_in_twilight_with_few_layers_warns(scene):
     s.sun_elevation = math.radians(-4.0)
     assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
     assert "Twilight: 2 layers" in s.last_info
+
+
+# ------------------------------------------------------------------ 6. builds that never freeze the UI
+
+
+def test_cancelled_background_build_leaves_the_scene_exactly_as_it_was(scene):
+    """The modal operator's job: physics in a thread, Esc -> cancel(); nothing touched the scene."""
+    from blender_addon import ops
+
+    add_camera(scene)
+    s = scene.world.skymodel
+    s.sun_elevation = math.radians(7.25)  # not cached
+    before = full_snapshot(scene)
+    job = ops.BuildJob(_Ctx(scene))
+    started = len(job.lines)
+    job.start()
+    job.cancel()
+    assert job.wait(timeout=120)
+    with pytest.raises(ops.BuildCancelled):
+        job.finish(_Ctx(scene))
+    assert diff(before, full_snapshot(scene)) == []
+    assert not any("writing" in line for line in job.lines[started:])  # stopped before the image was written
+    assert not list(ops.cache_dir().glob("sky-*.tmp"))
+
+
+def test_background_build_finishes_on_the_main_thread_and_refuses_a_second(scene):
+    from blender_addon import ops
+
+    s = scene.world.skymodel
+    s.sun_elevation = math.radians(8.5)
+    job = ops.BuildJob(_Ctx(scene)).start()
+    ops.JOB = job
+    try:
+        if job.running:  # a second build while one runs is refused, by the operator and the function
+            with pytest.raises(RuntimeError, match="already running"):  # the operator's ERROR report
+                bpy.ops.skymodel.build_sky()
+            with pytest.raises(RuntimeError, match="already running"):
+                ops.build(_Ctx(scene))
+        assert job.wait(timeout=300)
+        result = job.finish(_Ctx(scene))
+    finally:
+        ops.JOB = None
+    assert result.mode == "ENVIRONMENT" and "Skymodel Sun" in bpy.data.objects
+    assert bpy.data.objects["Skymodel Sun"]["skymodel_sun_elevation_deg"] == pytest.approx(8.5, abs=1e-4)
+
+
+def test_invoke_without_a_window_builds_in_one_go(scene):
+    assert bpy.ops.skymodel.build_sky("INVOKE_DEFAULT") == {"FINISHED"}
+    assert "Skymodel Sun" in bpy.data.objects
+
+
+def test_a_failing_background_build_reports_and_leaves_the_scene(scene, monkeypatch):
+    from blender_addon import ops, physics
+
+    before = full_snapshot(scene)
+
+    def boom(*a, **k):
+        raise FloatingPointError("sky image: non-finite values")
+
+    monkeypatch.setattr(physics, "render_environment", boom)
+    job = ops.BuildJob(_Ctx(scene)).start()
+    assert job.wait(timeout=60)
+    with pytest.raises(FloatingPointError):
+        job.finish(_Ctx(scene))
+    assert diff(before, full_snapshot(scene)) == []
