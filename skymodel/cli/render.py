@@ -55,7 +55,8 @@ def cmd_render(args) -> int:
     from skymodel.render.cameras import make_camera
     from skymodel.render.memory import check_render_memory
     from skymodel.render.quality import quality_settings
-    from skymodel.render.sky import render_sky
+    from skymodel.render.sky import render_sky, render_sky_reduced
+    from skymodel.render.skyview import xyz_reduction
     from skymodel.wavelengths import default_wavelengths
 
     prog = Progress(args.quiet)
@@ -68,8 +69,11 @@ def cmd_render(args) -> int:
     scene.check("observer_altitude", args.observer_altitude)
     exposure = None if args.exposure is None else scene.check("exposure_ev", args.exposure)
     limit_gib = scene.check("max_memory", args.max_memory)
-    camera = make_camera(args.camera, width, height, n_wavelengths=wl.size, max_memory_bytes=limit_gib * 1024**3)
-    check_render_memory(camera.width, camera.height, wl.size, settings, limit_gib, wavelengths_nm=wl)
+    # the spectral cube is kept only when --spectral asks for it; otherwise 3 values a pixel
+    kept = wl.size if args.spectral else 3
+    camera = make_camera(args.camera, width, height, n_wavelengths=kept, max_memory_bytes=limit_gib * 1024**3)
+    check_render_memory(camera.width, camera.height, wl.size, settings, limit_gib, wavelengths_nm=wl,
+                        image_channels=kept)
     png = None if args.no_png else (args.png or (str(args.out).rsplit(".", 1)[0] + ".png"))
     # validate every output path before the (long) render, so nothing is half-written
     for key, path, ext in (("out", args.out, ".exr"), ("png", png, ".png"), ("spectral", args.spectral, ".npz")):
@@ -79,12 +83,20 @@ def cmd_render(args) -> int:
                f"sun elevation {sun.elevation_deg:.2f}, azimuth {sun.azimuth_deg:.2f}; {camera.name} "
                f"{camera.width}x{camera.height}, {wl.size} wavelengths, quality {quality}")
     profile = profile_for_sun(atm, wl, sun)
-    img = render_sky(profile, camera, sun.elevation_deg, sun.azimuth_deg, args.observer_altitude, settings,
-                     include_sun=not args.no_sun, progress=prog.order, max_memory_gib=limit_gib)
+    if args.spectral:
+        img = render_sky(profile, camera, sun.elevation_deg, sun.azimuth_deg, args.observer_altitude, settings,
+                         include_sun=not args.no_sun, progress=prog.order, max_memory_gib=limit_gib)
+        radiance, xyz, info = img.radiance, None, img.info
+    else:  # straight to CIE XYZ (the sky-view table for large images): no spectral cube
+        xyz, _, info = render_sky_reduced(profile, camera, sun.elevation_deg, xyz_reduction(wl), 3,
+                                          sun.azimuth_deg, args.observer_altitude, settings, band_pixels=1 << 20,
+                                          progress=prog.order, include_sun=not args.no_sun)
+        radiance = None
     if not args.quiet:
         print(file=sys.stderr)
-    prog.stage(f"rendered in {img.info['total_s']:.1f}s ({img.info['orders']} scattering orders)")
-    written = image_io.save_outputs(out=args.out, png=png, spectral=args.spectral, radiance=img.radiance,
+    prog.stage(f"rendered in {info['total_s']:.1f}s ({info['orders']} scattering orders, "
+               f"{info.get('method', 'direct')} method)")
+    written = image_io.save_outputs(out=args.out, png=png, spectral=args.spectral, radiance=radiance, xyz=xyz,
                                     wavelengths=wl, camera=camera, exposure_ev=exposure,
                                     colour_space="xyz" if args.xyz else "rec709",
                                     metadata={"atmosphere": profile.metadata, "sun_elevation_deg": sun.elevation_deg,

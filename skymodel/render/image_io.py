@@ -574,8 +574,8 @@ def write_spectral_npz(path, radiance, wavelengths_nm, directions, valid=None, *
 _EXR_SPACES = ("rec709", "acescg", "xyz")
 
 
-def save_outputs(out=None, png=None, spectral=None, *, radiance, wavelengths, camera, exposure_ev=None,
-                 colour_space="rec709", half=False, compression="zip", metadata=None):
+def save_outputs(out=None, png=None, spectral=None, *, radiance=None, wavelengths, camera, exposure_ev=None,
+                 colour_space="rec709", half=False, compression="zip", metadata=None, xyz=None):
     """Write the outputs of a render: any of ``out`` (``.exr``), ``png`` (``.png``) and
     ``spectral`` (``.npz``).
 
@@ -587,6 +587,10 @@ def save_outputs(out=None, png=None, spectral=None, *, radiance, wavelengths, ca
     (``"acescg"``), with the matching ``chromaticities`` attribute, or X, Y, Z
     (``"xyz"``). The PNG is :func:`tonemap` of the Rec.709 image at ``exposure_ev``. The
     NPZ is :func:`write_spectral_npz` with the camera description and ``metadata``.
+    ``xyz`` (H, W, 3) instead of ``radiance``: the image already reduced to CIE XYZ (the
+    same integrals; e.g. :func:`skymodel.render.sky.render_sky_reduced` with
+    :func:`skymodel.render.skyview.xyz_reduction`), for renders that never hold the
+    spectral cube; then no ``spectral`` output.
 
     Everything is validated before any file is created; the files are then written to
     temporary files and renamed into place together. Returns ``{"out": path, ...}`` for
@@ -613,18 +617,30 @@ def save_outputs(out=None, png=None, spectral=None, *, radiance, wavelengths, ca
         raise SkymodelInputError("colour_space", colour_space, "one of: " + ", ".join(_EXR_SPACES))
     if exposure_ev is not None:
         scene.check("exposure_ev", exposure_ev)
-    rad = np.asarray(radiance)
-    if rad.ndim != 3 or rad.shape[:2] != camera.shape:
-        raise SkymodelInputError("radiance", f"array of shape {rad.shape}",
-                                 f"shape ({camera.height}, {camera.width}, n_wavelengths) for {camera!r}")
-    directions, valid = camera.directions()
-    rad, wl, directions, valid = _validate_spectral(rad, wavelengths, directions, valid)
+    if (radiance is None) == (xyz is None):
+        raise SkymodelInputError("radiance", "both or neither of radiance and xyz", "exactly one of them")
+    if xyz is not None:
+        if spectral is not None:
+            raise SkymodelInputError("spectral", spectral, "no spectral output from an XYZ image (render spectra)")
+        xyz_in = np.asarray(xyz, dtype=float)
+        if xyz_in.shape != camera.shape + (3,) or not np.all(np.isfinite(xyz_in)):
+            raise SkymodelInputError("xyz", f"array of shape {xyz_in.shape}",
+                                     f"finite values of shape ({camera.height}, {camera.width}, 3) for {camera!r}")
+        rad = None
+        directions, valid = camera.directions()
+    else:
+        rad = np.asarray(radiance)
+        if rad.ndim != 3 or rad.shape[:2] != camera.shape:
+            raise SkymodelInputError("radiance", f"array of shape {rad.shape}",
+                                     f"shape ({camera.height}, {camera.width}, n_wavelengths) for {camera!r}")
+        directions, valid = camera.directions()
+        rad, wl, directions, valid = _validate_spectral(rad, wavelengths, directions, valid)
     meta = {"camera": camera.describe(), "colour_space": space,
             "exposure_ev": exposure_ev, **(metadata or {})}
     _metadata_json(meta)
 
     jobs = []
-    xyz = np.where(valid[..., None], spectral_to_xyz(rad, wl), 0.0)
+    xyz = np.where(valid[..., None], spectral_to_xyz(rad, wl) if rad is not None else xyz_in, 0.0)
     rgb709 = xyz_to_rgb(xyz, "rec709")
     if "out" in paths:
         if space == "xyz":

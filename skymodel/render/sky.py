@@ -99,7 +99,7 @@ def check_render_arguments(profile, camera, sun_elevation_deg, sun_azimuth_deg, 
 
 def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_deg: float = 180.0,
                observer_altitude_m: float = 0.0, quality=None, include_sun: bool = True,
-               progress=None, solution=None, max_memory_gib=None) -> SkyImage:
+               progress=None, solution=None, method: str = "auto", max_memory_gib=None) -> SkyImage:
     """Render ``camera``'s pixels for the atmosphere ``profile`` (smooth or layered).
 
     ``sun_elevation_deg`` [deg] in -12..90 (below -12 is night: refused, not clamped),
@@ -109,7 +109,10 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
     render's estimated peak memory against ``max_memory_gib`` [GiB] (None: the registry's
     ``max_memory``; :func:`skymodel.render.memory.check_render_memory`).
     ``solution``: a :class:`~skymodel.render.marcher.SkySolution` of this profile to reuse
-    instead of solving multiple scattering again (:mod:`skymodel.render.sequence`)."""
+    instead of solving multiple scattering again (:mod:`skymodel.render.sequence`).
+    ``method``: ``"direct"`` marches every pixel, ``"table"`` resamples the sky-view table
+    (:mod:`skymodel.render.skyview`), ``"auto"`` the table for images of at least
+    ``TABLE_MIN_PIXELS`` valid pixels unless the settings ask for ``exact``."""
     from skymodel.render.memory import check_render_memory
 
     settings = check_render_arguments(profile, camera, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m,
@@ -121,7 +124,7 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
     marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
                          progress=progress, solution=solution)
     dirs, valid = camera.directions()
-    radiance, res_info, _ = _march_pixels(marcher, dirs, valid, None, profile.wavelengths_nm.size, None)
+    radiance, res_info, _ = _pixels(marcher, dirs, valid, None, profile.wavelengths_nm.size, None, method)
     sun_irr = marcher.direct_sun_irradiance()
     sun_mask = np.zeros(valid.shape, bool)
     if include_sun:
@@ -138,28 +141,135 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
 
 def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce, n_channels: int,
                        sun_azimuth_deg: float = 180.0, observer_altitude_m: float = 0.0, quality=None,
-                       band_pixels: int = 65536, progress=None, solution=None):
-    """Render ``camera`` without ever holding the whole spectral cube: the image is marched
-    in bands of about ``band_pixels`` pixels and each band's spectra are reduced at once by
-    ``reduce(radiance (n, n_wl), wavelengths_nm) -> (n, n_channels)`` (e.g. to scene-linear
-    RGB). Memory then grows with the image as ``n_channels`` values per pixel, not
-    ``n_wl``. The sun disc is not added (a renderer that wants it draws a lamp).
-    ``solution``: as in :func:`render_sky`.
+                       band_pixels: int = 65536, progress=None, solution=None, method: str = "auto",
+                       include_sun: bool = False):
+    """Render ``camera`` without ever holding the whole spectral cube: each band of about
+    ``band_pixels`` pixels is reduced to ``n_channels`` values at once, so memory grows with
+    the image as ``n_channels`` values per pixel, not ``n_wl``.
+
+    ``reduce``: a :class:`~skymodel.render.skyview.Reduction` (a linear map of the spectrum,
+    then an optional per-pixel finish; e.g. :func:`~skymodel.render.skyview.xyz_reduction`),
+    or any ``reduce(radiance (n, n_wl), wavelengths_nm) -> (n, n_channels)`` (then every
+    pixel is marched: ``method`` is taken as ``"direct"``). ``method`` as in
+    :func:`render_sky`: with a Reduction and ``"auto"``/``"table"`` the sky-view table is
+    built in the reduced channels and resampled, so a 4096x2048 panorama holds 3 values a
+    pixel. ``include_sun``: add the solar disc (:func:`sun_disc_spectra`) before the
+    finish (the add-on leaves it out and draws a lamp). ``solution``: as in :func:`render_sky`.
 
     Returns ``(image (H, W, n_channels), sun_irradiance (n_wl,), info)``; invalid pixels are 0.
     """
+    from skymodel.render.skyview import Reduction
+
     settings = check_render_arguments(profile, camera, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m,
                                       quality)
     sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings = settings
+    method = _check_method(method)
     t0 = time.perf_counter()
     marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
                          progress=progress, solution=solution)
     dirs, valid = camera.directions()
-    out, info, bands = _march_pixels(marcher, dirs, valid, reduce, n_channels, band_pixels)
+    sun_irr = marcher.direct_sun_irradiance()
+    disc = None
+    if include_sun:
+        disc = sun_disc_spectra(dirs, valid, camera.pixel_solid_angles(), marcher.sun, sun_irr,
+                                profile.wavelengths_nm)
+    if isinstance(reduce, Reduction):
+        out, info, bands = _pixels(marcher, dirs, valid, reduce, n_channels, band_pixels, method, disc)
+    else:
+        if disc is not None:
+            raise ValueError("include_sun needs a Reduction (the disc is added before the finish)")
+        out, info, bands = _march_pixels(marcher, dirs, valid, reduce, n_channels, band_pixels)
+        info["method"] = "direct"
     info["total_s"] = time.perf_counter() - t0
     info["bands"] = bands
     info["quality"] = _quality_name(quality)
-    return out, marcher.direct_sun_irradiance(), info
+    info["sun_pixels"] = 0 if disc is None else int(disc[0].sum())
+    return out, sun_irr, info
+
+
+def sun_disc_spectra(directions, valid, solid_angles, sun_dir, irradiance, wavelengths_nm,
+                     angular_radius_rad: float = SUN_ANGULAR_RADIUS_RAD):
+    """The solar disc as :func:`add_sun_disc` draws it (limb darkened, irradiance
+    conserved), without a spectral image: ``(mask (H, W), radiance (mask.sum(), n_wl))``."""
+    from skymodel import sun as sun_module
+
+    n_wl = len(wavelengths_nm)
+    mask = np.zeros(valid.shape, bool)
+    if not np.any(np.asarray(irradiance) > 0):
+        return mask, np.zeros((0, n_wl))
+    reach = 4 * angular_radius_rad + 2.0 * float(np.sqrt(np.max(solid_angles)))  # add_sun_disc's fallback reach
+    near = valid & (directions @ np.asarray(sun_dir, float) > np.cos(min(reach, np.pi)))
+    rows = np.nonzero(near.any(axis=1))[0]
+    cols = np.nonzero(near.any(axis=0))[0]
+    if rows.size == 0:  # add_sun_disc's own fallback: the nearest valid pixel anywhere
+        rows, cols = np.arange(valid.shape[0]), np.arange(valid.shape[1])
+    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    sub = np.zeros((r1 - r0, c1 - c0, n_wl))
+    inside = add_sun_disc(sub, directions[r0:r1, c0:c1], valid[r0:r1, c0:c1], solid_angles[r0:r1, c0:c1], sun_dir,
+                          irradiance, wavelengths_nm, angular_radius_rad,
+                          limb_darkening=getattr(sun_module, "limb_darkening", None))
+    mask[r0:r1, c0:c1] = inside
+    return mask, sub[inside]
+
+
+def _check_method(method) -> str:
+    from skymodel.errors import SkymodelInputError
+
+    m = str(method).lower() if isinstance(method, str) else method
+    if m not in ("auto", "table", "direct"):
+        raise SkymodelInputError("method", method, "one of: auto, table, direct")
+    return m
+
+
+def _use_table(marcher, valid, method: str) -> bool:
+    from skymodel.render.skyview import TABLE_MIN_PIXELS
+
+    if method == "direct" or marcher._grid is None:
+        return False
+    return method == "table" or int(valid.sum()) >= TABLE_MIN_PIXELS
+
+
+def _pixels(marcher, dirs, valid, reduction, n_channels: int, band_pixels, method: str, disc=None):
+    """The valid pixels of a camera through the sky-view table (:mod:`skymodel.render.skyview`)
+    or marched directly (:func:`_march_pixels`), as ``method`` says (:func:`_use_table`).
+    ``reduction``: a :class:`~skymodel.render.skyview.Reduction` or None (spectra);
+    ``disc``: ``(mask, spectra)`` of the solar disc, added before the reduction's finish.
+    Returns ``(image (H, W, n_channels), info, number of bands)``."""
+    from skymodel.render.skyview import Reduction, SkyViewTable
+
+    red = reduction if reduction is not None else Reduction(None, int(n_channels))
+    h, w = valid.shape
+    out = np.zeros((h * w, int(n_channels)))
+    flat = dirs.reshape(-1, 3)
+    sel = np.nonzero(valid.ravel())[0]
+    band = sel.size if band_pixels is None else max(1, int(band_pixels))
+    disc_at = {}
+    if disc is not None and disc[1].shape[0]:
+        disc_at = dict(zip(np.nonzero(disc[0].ravel())[0].tolist(), red.linear(disc[1])))
+    t_start = time.perf_counter()
+    table = SkyViewTable(marcher, red) if _use_table(marcher, valid, method) else None
+    bands = 0
+    for start in range(0, sel.size, max(band, 1)):
+        idx = sel[start:start + band]
+        if table is not None:
+            part = table.lookup(flat[idx])
+        else:
+            res = marcher.radiance(flat[idx])
+            part = red.linear(res.radiance)
+        if disc_at:
+            hit = np.nonzero(np.isin(idx, list(disc_at)))[0]
+            for k in hit:
+                part[k] = part[k] + disc_at[int(idx[k])]
+        out[idx] = red.final(part).reshape(idx.size, -1)
+        bands += 1
+    info = {"orders": marcher.field.orders, "order_contributions": list(marcher.field.order_contributions),
+            "timings": dict(marcher.timings, directions_s=time.perf_counter() - t_start),
+            "settings": marcher.settings, "method": "table" if table is not None else "direct"}
+    if table is not None:
+        info["timings"].update(table.timings)
+        info["table_nodes"] = table.n_nodes
+        info["table_exact_pixels"] = table.exact_pixels
+    return out.reshape(h, w, int(n_channels)), info, bands
 
 
 def _march_pixels(marcher, dirs, valid, reduce, n_channels: int, band_pixels):

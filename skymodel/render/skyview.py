@@ -1,0 +1,239 @@
+"""The sky-view table: a sky marched once on a direction grid, then resampled to any image.
+
+A panorama of 4096x2048 pixels has 8.4 million directions; the sky's radiance varies
+slowly over most of them. :class:`SkyViewTable` holds the radiance of one
+:class:`~skymodel.render.marcher.SkyMarcher` (one atmosphere, sun and observer), already
+reduced to the output channels (a linear map of the spectrum, e.g. CIE XYZ: 3 numbers per
+node instead of 81), on two direction grids (as the sky-view LUT of Hillaire 2020):
+
+* the **main grid**: the marcher's own direction grid (zenith angle x azimuth from the
+  sun's vertical plane, 0..180 degrees since the sky of a horizontally homogeneous
+  atmosphere is symmetric about that plane; the zenith nodes are split at the observer's
+  horizon and crowded toward it on both sides, ``MarchSettings.grid_zenith``,
+  ``grid_zenith_ground``, ``grid_azimuth``). Its nodes are marched once when the marcher
+  is built; a pixel outside the sun cap is interpolated bilinearly from it, which is what
+  the marcher itself does for such a pixel, so the table's value equals direct marching
+  there up to rounding (a linear reduction commutes with linear interpolation);
+* the **sun cap**: directions within ``MarchSettings.sun_exact_deg`` (8 degrees) of the
+  sun, which direct marching evaluates exactly (the aureole), on a polar grid centred on
+  the sun: angle from the sun evenly spaced in its logarithm from :data:`CAP_EXACT_DEG` to
+  the cap's edge (:data:`CAP_RADIAL` nodes) x angle around the sun, 0..180 degrees (the
+  same symmetry, :data:`CAP_AROUND` nodes), marched exactly once per sun. A pixel in the
+  cap is interpolated bilinearly in (log angle, angle around): within
+  :data:`CAP_RATIO_DEG` of the horizon the ratio exact / main grid (the main grid's
+  crowded zenith nodes carry the horizon's steep gradient), elsewhere the logarithm of the
+  value (the aureole falls as a power of the angle). Pixels closer to the sun than
+  :data:`CAP_EXACT_DEG`, closer to the horizon than :data:`CAP_HORIZON_DEG`, or whose four
+  nodes are not all on their side of the horizon (a low sun's cap straddles the sky/ground
+  edge) are marched exactly: a few thousand pixels of a 4096x2048 panorama.
+
+Resampling error against direct marching of every pixel is measured by
+``benchmarks/bench_skyview.py`` (docs/benchmarks.md, "Large environment maps"), which
+sized the cap grid; ``tests/test_skyview.py`` checks it at small sizes.
+
+References
+----------
+S. Hillaire, "A Scalable and Production Ready Sky and Atmosphere Rendering Technique",
+Computer Graphics Forum 39(4), 2020 (the sky-view LUT: a latitude/longitude table crowded
+toward the horizon, rendered once per frame and sampled per pixel).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Reduction", "SkyViewTable", "xyz_reduction", "rgb_reduction", "CAP_RADIAL", "CAP_AROUND",
+           "TABLE_MIN_PIXELS"]
+
+#: Nodes of the sun cap's polar grid: from the sun outward (gamma = gamma_max u^2) and around it
+#: (0..180 degrees). Sized by ``benchmarks/bench_skyview.py`` (see the module doc).
+CAP_RADIAL = 32
+CAP_AROUND = 49
+#: Pixels closer than this to the sun (degrees) are marched exactly: the aureole of coarse
+#: dust falls by 10x per degree there and carries 5-10 % ripples over 0.1 degree, which no
+#: affordable node spacing resolves (measured: 2-6 % error 1 degree from the sun, desert).
+CAP_EXACT_DEG = 2.0
+#: Pixels of the cap this close to the horizon (degrees) are marched exactly: the ground
+#: seen at grazing angles toward a low sun changes by 2x over a fraction of a degree.
+CAP_HORIZON_DEG = 0.5
+#: Within this many degrees of the horizon the cap holds exact / main grid (the main grid's
+#: crowded zenith nodes carry the horizon's steep gradient), elsewhere the exact values.
+CAP_RATIO_DEG = 4.0
+#: Images with at least this many valid pixels go through the table in ``render_sky``'s
+#: ``method="auto"``: below it the table's own nodes (about 12 000 at ``final``) are not
+#: fewer than the pixels near the sun it saves marching.
+TABLE_MIN_PIXELS = 1 << 18
+
+
+@dataclass(frozen=True)
+class Reduction:
+    """How spectra become output channels: ``matrix`` (n_wl, K) applied first (linear, so
+    it commutes with the table's interpolation; None keeps the spectra), then ``finish``
+    ((n, K) -> (n, n_channels), e.g. a gamut fit; None: none) on each pixel."""
+
+    matrix: np.ndarray | None
+    n_channels: int
+    finish: object = None
+
+    def linear(self, spectra: np.ndarray) -> np.ndarray:
+        return spectra if self.matrix is None else spectra @ self.matrix
+
+    def final(self, values: np.ndarray) -> np.ndarray:
+        return values if self.finish is None else np.asarray(self.finish(values), dtype=float)
+
+    def __call__(self, spectra, wavelengths_nm=None):
+        """The whole reduction of spectra (n, n_wl) -> (n, n_channels)."""
+        return self.final(self.linear(np.asarray(spectra, dtype=float)))
+
+
+def xyz_reduction(wavelengths_nm) -> Reduction:
+    """Spectra -> CIE 1931 XYZ (:func:`skymodel.colorimetry.cmf_weights`)."""
+    from skymodel.colorimetry import cmf_weights
+
+    return Reduction(cmf_weights(wavelengths_nm), 3)
+
+
+def rgb_reduction(wavelengths_nm, space: str = "rec709", finish=None) -> Reduction:
+    """Spectra -> scene-linear RGB of ``space``, then ``finish`` (e.g. a gamut fit)."""
+    from skymodel.colorimetry import cmf_weights, xyz_to_rgb_matrix
+
+    return Reduction(cmf_weights(wavelengths_nm) @ xyz_to_rgb_matrix(space).T, 3, finish)
+
+
+def _bilinear(tab, i, fi, j, fj):
+    """tab (A, B, K) at fractional nodes (i + fi, j + fj) -> (N, K)."""
+    fi, fj = fi[:, None], fj[:, None]
+    return ((tab[i, j] * (1 - fj) + tab[i, j + 1] * fj) * (1 - fi)
+            + (tab[i + 1, j] * (1 - fj) + tab[i + 1, j + 1] * fj) * fi)
+
+
+def _cell(axis, x):
+    """Index of the cell of ``axis`` (ascending) holding x (clipped) and the fraction in it."""
+    x = np.clip(x, axis[0], axis[-1])
+    i = np.clip(np.searchsorted(axis, x, side="right") - 1, 0, axis.size - 2)
+    return i, (x - axis[i]) / (axis[i + 1] - axis[i])
+
+
+class SkyViewTable:
+    """The radiance of ``marcher``'s sky reduced by ``reduction.matrix`` on the main grid and
+    the sun cap (module doc). ``lookup(directions)`` gives (N, K) values; ``timings`` the
+    seconds spent building the cap (the main grid is the marcher's)."""
+
+    def __init__(self, marcher, reduction: Reduction, cap_radial: int = CAP_RADIAL, cap_around: int = CAP_AROUND):
+        if marcher._grid is None:
+            raise ValueError("the sky-view table needs a marcher with a direction grid (settings.exact is False)")
+        t0 = time.perf_counter()
+        self.marcher = marcher
+        self.reduction = reduction
+        sky, ground, az, images = marcher._grid
+        self.sky_zenith, self.ground_zenith, self.azimuth = sky, ground, az
+        self.sky = reduction.linear(sum(images[0]))  # (n_zen, n_az, K)
+        self.ground = reduction.linear(sum(images[1]))
+        self.horizon = marcher.horizon_zenith_rad()
+        self.sun = np.asarray(marcher.sun, float)
+        self.cap_max = np.radians(marcher.settings.sun_exact_deg)
+        self.cos_cap = np.cos(self.cap_max)
+        # the cap's frame: e1 in the sun's vertical plane toward the zenith, e2 = sun x e1
+        zen = np.array([0.0, 0.0, 1.0])
+        e1 = zen - self.sun[2] * self.sun
+        if np.linalg.norm(e1) < 1e-9:  # sun at the zenith: any horizontal axis
+            e1 = np.array([np.sin(np.radians(marcher.sun_azimuth_deg)), np.cos(np.radians(marcher.sun_azimuth_deg)),
+                           0.0])
+        self.e1 = e1 / np.linalg.norm(e1)
+        self.e2 = np.cross(self.sun, self.e1)
+        self.cap_u = np.linspace(0.0, 1.0, int(cap_radial))
+        self.cap_psi = np.linspace(0.0, np.pi, int(cap_around))
+        self.cap_min = np.radians(CAP_EXACT_DEG)
+        self.horizon_band = np.radians(CAP_HORIZON_DEG)
+        g = self._gamma(self.cap_u)
+        gg, pp = np.meshgrid(g, self.cap_psi, indexing="ij")
+        d = (np.cos(gg)[..., None] * self.sun + np.sin(gg)[..., None]
+             * (np.cos(pp)[..., None] * self.e1 + np.sin(pp)[..., None] * self.e2)).reshape(-1, 3)
+        zen_d = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
+        below_d = zen_d >= self.horizon
+        exact = self._march(d)
+        base = self._main(d, zen_d, below_d)
+        # the cap holds log(exact / main grid): 0 where the main grid is already right, smooth
+        # across the horizon's steep gradient (which the main grid's crowded zenith nodes carry)
+        ok = (exact > 0) & (base > 0)
+        ratio = np.where(ok, exact / np.where(ok, base, 1.0), 1.0)
+        self.log_ratio = np.log(ratio).reshape(gg.shape + (-1,))
+        self.log_cap = np.log(np.where(exact > 0, exact, 1.0)).reshape(gg.shape + (-1,))
+        self.cap_positive = np.all(exact > 0, axis=-1).reshape(gg.shape)
+        self.cap_below = below_d.reshape(gg.shape)
+        self.timings = {"cap_s": time.perf_counter() - t0, "cap_nodes": int(d.shape[0])}
+        self.exact_pixels = 0
+
+    def _gamma(self, u):
+        """Angle from the sun [rad] of the cap's radial coordinate u in [0, 1]."""
+        return self.cap_min * (self.cap_max / self.cap_min) ** u
+
+    def _march(self, d):
+        """Exactly marched, reduced values (N, K) of directions d (N, 3)."""
+        m = self.marcher
+        chunk = m.settings.chunk
+        out = []
+        for i in range(0, d.shape[0], chunk):
+            s, mu, g = m._exact(d[i:i + chunk])
+            out.append(self.reduction.linear(s + mu + g))
+        return np.concatenate(out) if out else np.zeros((0, self.sky.shape[-1]))
+
+    @property
+    def n_nodes(self) -> int:
+        return int(self.sky.shape[0] * self.sky.shape[1] + self.ground.shape[0] * self.ground.shape[1]
+                   + self.log_ratio.shape[0] * self.log_ratio.shape[1])
+
+    def _main(self, d, zen, below):
+        """Bilinear values (N, K) of the main grid at directions d (N, 3)."""
+        dh = d[:, :2]
+        sun_h = self.sun[:2]
+        nrm = np.linalg.norm(dh, axis=1) * np.linalg.norm(sun_h)
+        c = np.where(nrm > 1e-12, (dh @ sun_h) / np.where(nrm > 1e-12, nrm, 1.0), 1.0)
+        rel = np.arccos(np.clip(c, -1.0, 1.0))
+        j, fj = _cell(self.azimuth, rel)
+        vals = np.empty((d.shape[0], self.sky.shape[-1]))
+        for mask, axis, tab in ((~below, self.sky_zenith, self.sky), (below, self.ground_zenith, self.ground)):
+            if np.any(mask):
+                i, fi = _cell(axis, zen[mask])
+                vals[mask] = _bilinear(tab, i, fi, j[mask], fj[mask])
+        return vals
+
+    def lookup(self, directions) -> np.ndarray:
+        """Reduced values (N, K) for unit ``directions`` (N, 3)."""
+        d = np.asarray(directions, float).reshape(-1, 3)
+        cos_g = d @ self.sun
+        zen = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
+        below = zen >= self.horizon
+        out = self._main(d, zen, below)
+        in_cap = cos_g > self.cos_cap
+        if np.any(in_cap):
+            idx = np.nonzero(in_cap)[0]
+            dc = d[idx]
+            gam = np.arccos(np.clip(cos_g[idx], -1.0, 1.0))
+            u = np.clip(np.log(np.maximum(gam, self.cap_min) / self.cap_min) / np.log(self.cap_max / self.cap_min),
+                        0.0, 1.0)
+            psi = np.arctan2(np.abs(dc @ self.e2), dc @ self.e1)
+            i, fi = _cell(self.cap_u, u)
+            j, fj = _cell(self.cap_psi, psi)
+            b = below[idx]
+            cb = self.cap_below
+            same = ((cb[i, j] == b) & (cb[i + 1, j] == b) & (cb[i, j + 1] == b) & (cb[i + 1, j + 1] == b))
+            same &= (gam >= self.cap_min) & (np.abs(zen[idx] - self.horizon) >= self.horizon_band)
+            # near the horizon: the main grid times the interpolated ratio; elsewhere the
+            # exact values interpolated in the logarithm (the aureole falls as a power of gamma)
+            cp = self.cap_positive
+            pos = cp[i, j] & cp[i + 1, j] & cp[i, j + 1] & cp[i + 1, j + 1]
+            low = np.abs(zen[idx] - self.horizon) < np.radians(CAP_RATIO_DEG)
+            for sel, tab in ((same & low, self.log_ratio), (same & ~low & pos, self.log_cap)):
+                k = idx[sel]
+                v = np.exp(_bilinear(tab, i[sel], fi[sel], j[sel], fj[sel]))
+                out[k] = out[k] * v if tab is self.log_ratio else v
+            same &= low | pos
+            exact = idx[~same]  # next to the sun, the horizon, or with nodes across the horizon
+            if exact.size:
+                out[exact] = self._march(d[exact])
+                self.exact_pixels += int(exact.size)
+        return out
