@@ -30,7 +30,10 @@ def environment(widths, elevation):
     from skymodel.planner import decisions
     from skymodel.planner.tables import EFFECTS_PATH, _EffectTable, load_table
 
-    t_table = _EffectTable(load_table(EFFECTS_PATH)).time("reference", elevation)
+    t_table = _EffectTable(load_table(EFFECTS_PATH)).time("reference", elevation)  # x ENV_FIXED_PER_TABLE below
+    # warm-up, not counted: the first render of a process loads the core's tables (the add-on pays it once a session)
+    physics.render_environment(physics.resolve(physics.SkyParams(location="rural", month=6, sun_elevation_deg=elevation,
+                                                                 image_width=64)), tempfile.mkdtemp())
     for w in widths:
         sky = physics.resolve(physics.SkyParams(location="rural", month=6, sun_elevation_deg=elevation,
                                                 image_width=w, quality="preview"))

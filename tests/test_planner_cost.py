@@ -40,16 +40,19 @@ def test_volume_time_model_grows_with_pixels_samples_and_layers():
 def test_environment_width_is_what_the_time_predicts():
     free = plan(scene(farthest_object_m=0.0))
     assert free.environment_width == 8192
-    assert free.predicted_build_s == pytest.approx(decisions.environment_build_time(free.predicted_time_s, 8192))
-    tight = plan(scene(farthest_object_m=0.0, time_budget_s=30.0))
+    scale = 1.0 if "accuracy table" in free.time_basis else decisions.ENV_FIXED_PER_TABLE
+    assert free.predicted_build_s == pytest.approx(decisions.environment_build_time(free.predicted_time_s, 8192, scale))
+    tight = plan(scene(farthest_object_m=0.0, time_budget_s=60.0))
     assert tight.environment_width < 8192
-    assert tight.predicted_build_s <= 30.0
+    assert tight.predicted_build_s <= 60.0
     assert tight.predicted_build_s == pytest.approx(
-        decisions.environment_build_time(tight.predicted_time_s, tight.environment_width))
+        decisions.environment_build_time(tight.predicted_time_s, tight.environment_width, scale))
     assert "time budget" in tight["angular_resolution"].reason
     # the width only shrinks as the budget shrinks
     widths = [plan(scene(farthest_object_m=0.0, time_budget_s=b)).environment_width for b in (1e4, 100, 30, 10, 1)]
     assert widths == sorted(widths, reverse=True) and widths[-1] == decisions.MIN_ENV_WIDTH
+    # a budget even the smallest image cannot meet: built at the smallest, and the plan says so
+    assert any("time budget" in w for w in plan(scene(farthest_object_m=0.0, time_budget_s=1.0)).warnings())
 
 
 def test_twilight_shells_get_enough_layers():

@@ -59,6 +59,10 @@ MIN_ENV_WIDTH, MAX_ENV_WIDTH = 256, 8192
 #: 256: 5.7 s, 512: 5.8 s, 1024: 7.5 s, 2048: see docs/planner.md): (7.51 - 5.84) s /
 #: (1024x512 - 512x256) px.
 ENV_SECONDS_PER_PIXEL = 4.25e-6
+#: The add-on's environment build costs this many times the effect table's render (its fixed
+#: part: the add-on's marcher settings and 41 wavelengths against the table's): 5.3 s (the fixed
+#: part of the widths above) against the table's 2.37 s at sun 10 degrees.
+ENV_FIXED_PER_TABLE = 2.2
 #: Cycles CPU render time of the volume shells, s per pixel, sample and layer (volume bounces 8):
 #: measured 64x32 px, rural, sun 10 degrees, 2-core machine, bpy 5.0.1: 7.5 s at 8 layers and
 #: 15.5 s at 16 layers with 32 samples (time grows with the layers; 1.15e-4 s per pixel and
@@ -435,10 +439,13 @@ def volume_render_time(scene: SceneDescription, n_layers: int) -> float:
                  * scene.samples)
 
 
-def environment_build_time(t_table: float, width: int) -> float:
-    """Predicted seconds to build an environment ``width`` x ``width / 2``: the effect
-    table's render time (its 64x32 image) plus :data:`ENV_SECONDS_PER_PIXEL` per further pixel."""
-    return float(t_table + ENV_SECONDS_PER_PIXEL * max(0, int(width) * (int(width) // 2) - 64 * 32))
+def environment_build_time(t_table: float, width: int, fixed_scale: float = ENV_FIXED_PER_TABLE) -> float:
+    """Predicted seconds to build an environment ``width`` x ``width / 2``: the plan's time
+    at the table's size (64x32) times ``fixed_scale`` (:data:`ENV_FIXED_PER_TABLE` for the
+    effect table's times; 1 when the accuracy table's ``final`` preset time sets the scale),
+    plus :data:`ENV_SECONDS_PER_PIXEL` per further pixel."""
+    extra_px = max(0, int(width) * (int(width) // 2) - 64 * 32)
+    return float(fixed_scale * t_table + ENV_SECONDS_PER_PIXEL * extra_px)
 
 
 def decide_volume_layers(ctx: _Planning, ap_err: float) -> Decision:
@@ -501,7 +508,8 @@ def decide_sun_disc(scene: SceneDescription, forced: dict) -> Decision:
     return Decision("sun_disc", disc_on, None, USER * ("sun_disc" in forced) + where_sun + disc, 0.0, None, "geometry")
 
 
-def decide_angular_resolution(scene: SceneDescription, t_table: float = 0.0) -> Decision:
+def decide_angular_resolution(scene: SceneDescription, t_table: float = 0.0,
+                              fixed_scale: float = ENV_FIXED_PER_TABLE) -> Decision:
     """Step 4b: the environment image's width (pixels, a power of 2 in
     :data:`MIN_ENV_WIDTH`..:data:`MAX_ENV_WIDTH`, height = width / 2) such that one of its
     pixels is no larger than a camera pixel (the smallest when the sky only lights the
@@ -511,21 +519,21 @@ def decide_angular_resolution(scene: SceneDescription, t_table: float = 0.0) -> 
         return Decision("angular_resolution", True, MIN_ENV_WIDTH,
                         f"the sky only lights the scene, so a {MIN_ENV_WIDTH}x{MIN_ENV_WIDTH // 2} "
                         "environment carries its light (irradiance is a smooth integral over the sky)",
-                        0.0, environment_build_time(t_table, MIN_ENV_WIDTH), "geometry")
+                        0.0, environment_build_time(t_table, MIN_ENV_WIDTH, fixed_scale), "geometry")
     px_deg = scene.max_fov_deg / max(scene.image_width, scene.image_height)
     need = 360.0 / px_deg
     w = int(min(MAX_ENV_WIDTH, max(MIN_ENV_WIDTH, 2 ** math.ceil(math.log2(need)))))
     sharp = w
     budget = scene.time_budget_s
-    while budget is not None and w > MIN_ENV_WIDTH and environment_build_time(t_table, w) > budget:
+    while budget is not None and w > MIN_ENV_WIDTH and environment_build_time(t_table, w, fixed_scale) > budget:
         w //= 2
-    t = environment_build_time(t_table, w)
+    t = environment_build_time(t_table, w, fixed_scale)
     reason = (f"a camera pixel spans {px_deg:.3g} degrees ({scene.max_fov_deg:g} degree view over "
               f"{max(scene.image_width, scene.image_height)} px), so a {sharp}x{sharp // 2} environment keeps the sky "
               "at least as sharp as the picture" + (" (the largest the planner makes)" if sharp == MAX_ENV_WIDTH
                                                     else ""))
     if w < sharp:
-        reason += (f"; it would take about {environment_build_time(t_table, sharp):.0f} s, over the time budget of "
+        reason += (f"; it would take about {environment_build_time(t_table, sharp, fixed_scale):.0f} s, over the time budget of "
                    f"{budget:g} s, so {w}x{w // 2} (softer than the picture by {sharp // w}x)")
     reason += f"; about {t:.0f} s to build"
     return Decision("angular_resolution", True, w, reason, 0.0, t, "geometry")
@@ -584,7 +592,8 @@ def plan(scene: SceneDescription, effects=EFFECTS_PATH, accuracy=ACCURACY_PATH, 
     for d in made:
         spent += d.predicted_error
     t_plan, t_all, basis = predicted_times(ctx, 0.0 + saved_orders + saved_spectral)
-    made += [decide_sun_disc(scene, forced), decide_angular_resolution(scene, t_plan)]
+    fixed_scale = 1.0 if "accuracy table" in basis else ENV_FIXED_PER_TABLE
+    made += [decide_sun_disc(scene, forced), decide_angular_resolution(scene, t_plan, fixed_scale)]
     rank = {k: i for i, k in enumerate(EFFECT_NAMES)}
     decisions = {d.name: d for d in sorted(made, key=lambda d: rank[d.name])}
     tables = {"effects": eff.table.get("command", ""), "accuracy": acc.table.get("command", "") if acc else None}
