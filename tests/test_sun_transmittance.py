@@ -12,7 +12,8 @@ from skymodel.render.sun_transmittance import SunTransmittance
 
 @pytest.fixture(scope="module")
 def rural():
-    prof = Atmosphere(location="rural", month=6, aod550=0.2).optical_profile((450.0, 650.0))
+    # the OPAC rural mixture (cut at 12 km) the slant depths below were measured with (issue 20)
+    prof = Atmosphere(location="rural", month=6, aod550=0.2, aerosol_model="opac").optical_profile((450.0, 650.0))
     return prof, factor_medium(prof)
 
 
