@@ -73,6 +73,7 @@ from skymodel.render import image_io
 from skymodel.render import sky as render_sky
 from skymodel.render.cameras import make_camera
 from skymodel.render.quality import QUALITIES
+from skymodel.render.skyview import rgb_reduction
 from skymodel.wavelengths import default_wavelengths
 
 #: Bump when the meaning of a cached file changes (2: the exposure of display_exposure).
@@ -274,6 +275,24 @@ def _write_json_atomic(path: Path, data: dict) -> None:
             tmp.unlink()
 
 
+#: Multiple-scattering solutions kept in memory per cache folder (a final one is ~150 MB).
+SOLUTIONS_IN_MEMORY = 2
+_SOLUTION_CACHES: dict = {}
+
+
+def solution_cache(folder):
+    """The process's :class:`~skymodel.render.sequence.SolutionCache` for a cache folder:
+    solutions in memory (:data:`SOLUTIONS_IN_MEMORY`) and on disk in ``folder/solutions``,
+    keyed by the optical profile's hash, so a build where only the sun or the time changed
+    skips the multiple-scattering solve, within a session and across sessions."""
+    from skymodel.render.sequence import SolutionCache
+
+    key = str(Path(folder).resolve())
+    if key not in _SOLUTION_CACHES:
+        _SOLUTION_CACHES[key] = SolutionCache(Path(folder) / "solutions", keep=SOLUTIONS_IN_MEMORY)
+    return _SOLUTION_CACHES[key]
+
+
 class _Orders:
     """Adapts the marcher's per-order callback to a text progress callback."""
 
@@ -433,7 +452,9 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
         Called with one line of text per stage.
     solutions : skymodel.render.sequence.SolutionCache or None
         Where the multiple-scattering solve comes from (our model): the frames of a
-        sequence share it (the add-on's Bake Time of Day); None solves for this image.
+        sequence share it (the add-on's Bake Time of Day); None: :func:`solution_cache` of
+        the cache folder (memory and disk), so a rebuild where only the sun or the time
+        changed reuses the solve.
 
     Returns
     -------
@@ -460,10 +481,11 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
     if progress:
         progress(f"optical profile: {len(wl)} wavelengths")
     prof = profile_at_distance(atmosphere, wl, earth_sun_distance_au)
-    # Our sky without the disc is rendered band by band straight to RGB, so only three
-    # values per pixel are kept (a 2048x1024 image at 81 wavelengths would otherwise hold
-    # a 1.4 GB spectral cube plus its working copies); the memory guard counts that.
-    banded = sky_model == OWN_MODEL and not include_sun
+    # Our sky is rendered band by band straight to RGB (the disc, if asked for, added before
+    # the gamut fit), so only three values per pixel are kept (a 2048x1024 image at 81
+    # wavelengths would otherwise hold a 1.4 GB spectral cube plus its working copies); the
+    # memory guard counts that. Large images resample the sky-view table (skymodel.render.skyview).
+    banded = sky_model == OWN_MODEL
     cam = environment_camera(width, n_wavelengths=3 if banded else wl.size)
     if progress:
         progress(f"spectral render {cam.width}x{cam.height}, quality {quality}")
@@ -473,15 +495,17 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
             settings = dataclasses.replace(render_sky.quality_settings(quality),
                                            orders=int(orders) or None if orders is not None else None,
                                            earth_shadow=bool(earth_shadow))
-        solution = None if solutions is None else solutions.get(prof, settings, progress=_Orders(progress))
-        if banded:
-            rgb, sun_irradiance, _ = render_sky.render_sky_reduced(
-                prof, cam, sun_elevation_deg, reduce_to_rgb, 3, sun_azimuth_deg, observer_altitude_m, settings,
-                progress=_Orders(progress), solution=solution)
-        else:
-            img = render_sky.render_sky(prof, cam, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
-                                        include_sun=include_sun, progress=_Orders(progress), solution=solution)
-            rgb, sun_irradiance = reduce_to_rgb(img.radiance, wl), img.sun_irradiance
+        # only the sun or the time changed since the last build: the multiple-scattering
+        # solution of this atmosphere is reused (memory, then the cache folder's solutions/)
+        if solutions is None:
+            solutions = solution_cache(folder)
+        t_solve = time.perf_counter()
+        solution = solutions.get(prof, settings, progress=_Orders(progress))
+        solve_s = time.perf_counter() - t_solve
+        rgb, sun_irradiance, render_info = render_sky.render_sky_reduced(
+            prof, cam, sun_elevation_deg, rgb_reduction(wl, finish=fit_into_gamut), 3, sun_azimuth_deg,
+            observer_altitude_m, settings, band_pixels=1 << 20, progress=_Orders(progress), solution=solution,
+            include_sun=include_sun)
     else:
         radiance, sun_irradiance = model_radiance(cam, wl, include_sun)
         rgb = reduce_to_rgb(radiance, wl)
@@ -497,6 +521,7 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
                          exposure=meter["exposure"])
     info = {
         "render_s": round(time.perf_counter() - t0, 3),
+        **({"solution_s": round(solve_s, 3), "method": render_info.get("method")} if sky_model == OWN_MODEL else {}),
         "size": f"{cam.width}x{cam.height}",
         "wavelengths": int(wl.size),
         **{k: v for k, v in meter.items() if k != "exposure"},

@@ -43,6 +43,7 @@ and interpolated, since it varies slowly across the sky.
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field, replace
 
@@ -59,6 +60,8 @@ from skymodel.scene import parameter
 
 #: Highest observer altitude, metres (the registry's bound: skymodel.scene).
 MAX_OBSERVER_ALTITUDE_M = parameter("observer_altitude").maximum
+#: Threads marching the direction grid's chunks (:meth:`SkyMarcher.exact_in_threads`).
+MARCH_THREADS = min(2, os.cpu_count() or 1)
 #: Largest peak optical depth (sun path + view path) the aureole table covers; beyond
 #: it the light is spread over tens of degrees and the table's last column is used.
 AUREOLE_MAX_PEAK_TAU = 30.0
@@ -340,9 +343,25 @@ class SkyMarcher:
         for zen in (sky, ground):
             zz, aa = np.meshgrid(zen, az, indexing="ij")
             d = self._dir_from_relative(zz.ravel(), aa.ravel())
-            parts = [self._exact(d[i:i + self.settings.chunk]) for i in range(0, d.shape[0], self.settings.chunk)]
+            parts = self.exact_in_threads(d)
             images.append(tuple(np.concatenate(c).reshape(zen.size, az.size, -1) for c in zip(*parts)))
         return sky, ground, az, images
+
+    def exact_in_threads(self, d, threads: int | None = None):
+        """``_exact`` over directions d (N, 3) in chunks, ``threads`` at a time (default
+        :data:`MARCH_THREADS`; numpy releases the GIL in its array operations). Each thread
+        takes chunks of ``settings.chunk // threads`` directions, so the working memory stays
+        that of one ``settings.chunk``. Returns the list of the chunks' (single, multiple,
+        ground), in order."""
+        n = max(1, int(MARCH_THREADS if threads is None else threads))
+        step = max(1, self.settings.chunk // n)
+        starts = range(0, d.shape[0], step)
+        if n == 1 or len(starts) == 1:
+            return [self._exact(d[i:i + step]) for i in starts]
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=n) as pool:
+            return list(pool.map(lambda i: self._exact(d[i:i + step]), starts))
 
     def _from_grid(self, d):
         sky, ground, az, images = self._grid

@@ -99,7 +99,8 @@ def check_render_arguments(profile, camera, sun_elevation_deg, sun_azimuth_deg, 
 
 def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_deg: float = 180.0,
                observer_altitude_m: float = 0.0, quality=None, include_sun: bool = True,
-               progress=None, solution=None, method: str = "auto", max_memory_gib=None) -> SkyImage:
+               progress=None, solution=None, method: str = "auto", max_memory_gib=None,
+               solutions=None) -> SkyImage:
     """Render ``camera``'s pixels for the atmosphere ``profile`` (smooth or layered).
 
     ``sun_elevation_deg`` [deg] in -12..90 (below -12 is night: refused, not clamped),
@@ -112,7 +113,11 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
     instead of solving multiple scattering again (:mod:`skymodel.render.sequence`).
     ``method``: ``"direct"`` marches every pixel, ``"table"`` resamples the sky-view table
     (:mod:`skymodel.render.skyview`), ``"auto"`` the table for images of at least
-    ``TABLE_MIN_PIXELS`` valid pixels unless the settings ask for ``exact``."""
+    ``TABLE_MIN_PIXELS`` valid pixels unless the settings ask for ``exact``.
+    ``solutions``: where the solve comes from when ``solution`` is None: a
+    :class:`~skymodel.render.sequence.SolutionCache`, None for the process's own
+    (:func:`shared_solutions`: a render of the same atmosphere with another sun reuses the
+    solve), False to solve afresh."""
     from skymodel.render.memory import check_render_memory
 
     settings = check_render_arguments(profile, camera, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m,
@@ -121,6 +126,7 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
     check_render_memory(camera.width, camera.height, profile.wavelengths_nm.size, settings, max_memory_gib,
                         wavelengths_nm=profile.wavelengths_nm)
     t0 = time.perf_counter()
+    solution = _solution(profile, settings, solution, solutions, progress)
     marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
                          progress=progress, solution=solution)
     dirs, valid = camera.directions()
@@ -142,7 +148,7 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
 def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce, n_channels: int,
                        sun_azimuth_deg: float = 180.0, observer_altitude_m: float = 0.0, quality=None,
                        band_pixels: int = 65536, progress=None, solution=None, method: str = "auto",
-                       include_sun: bool = False):
+                       include_sun: bool = False, solutions=None):
     """Render ``camera`` without ever holding the whole spectral cube: each band of about
     ``band_pixels`` pixels is reduced to ``n_channels`` values at once, so memory grows with
     the image as ``n_channels`` values per pixel, not ``n_wl``.
@@ -154,7 +160,8 @@ def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce
     :func:`render_sky`: with a Reduction and ``"auto"``/``"table"`` the sky-view table is
     built in the reduced channels and resampled, so a 4096x2048 panorama holds 3 values a
     pixel. ``include_sun``: add the solar disc (:func:`sun_disc_spectra`) before the
-    finish (the add-on leaves it out and draws a lamp). ``solution``: as in :func:`render_sky`.
+    finish (the add-on leaves it out and draws a lamp). ``solution``, ``solutions``: as in
+    :func:`render_sky`.
 
     Returns ``(image (H, W, n_channels), sun_irradiance (n_wl,), info)``; invalid pixels are 0.
     """
@@ -165,6 +172,7 @@ def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce
     sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings = settings
     method = _check_method(method)
     t0 = time.perf_counter()
+    solution = _solution(profile, settings, solution, solutions, progress)
     marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
                          progress=progress, solution=solution)
     dirs, valid = camera.directions()
@@ -185,6 +193,31 @@ def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce
     info["quality"] = _quality_name(quality)
     info["sun_pixels"] = 0 if disc is None else int(disc[0].sum())
     return out, sun_irr, info
+
+
+#: Multiple-scattering solutions the process keeps in memory for :func:`shared_solutions`.
+SHARED_SOLUTIONS = 2
+_SHARED = []
+
+
+def shared_solutions():
+    """The process's :class:`~skymodel.render.sequence.SolutionCache` (memory only, the
+    :data:`SHARED_SOLUTIONS` most recent): what :func:`render_sky` and
+    :func:`render_sky_reduced` use when given neither ``solution`` nor ``solutions``."""
+    if not _SHARED:
+        from skymodel.render.sequence import SolutionCache
+
+        _SHARED.append(SolutionCache(keep=SHARED_SOLUTIONS))
+    return _SHARED[0]
+
+
+def _solution(profile, settings, solution, solutions, progress):
+    """The solution to march with: ``solution``, else from ``solutions`` (None: the shared
+    cache; False: none, the marcher solves)."""
+    if solution is not None or solutions is False:
+        return solution
+    cache = shared_solutions() if solutions is None else solutions
+    return cache.get(profile, settings, progress=progress)
 
 
 def sun_disc_spectra(directions, valid, solid_angles, sun_dir, irradiance, wavelengths_nm,

@@ -173,13 +173,10 @@ class SkyViewTable:
 
     def _march(self, d):
         """Exactly marched, reduced values (N, K) of directions d (N, 3)."""
-        m = self.marcher
-        chunk = m.settings.chunk
-        out = []
-        for i in range(0, d.shape[0], chunk):
-            s, mu, g = m._exact(d[i:i + chunk])
-            out.append(self.reduction.linear(s + mu + g))
-        return np.concatenate(out) if out else np.zeros((0, self.sky.shape[-1]))
+        if d.shape[0] == 0:
+            return np.zeros((0, self.sky.shape[-1]))
+        parts = self.marcher.exact_in_threads(d)
+        return np.concatenate([self.reduction.linear(s + mu + g) for s, mu, g in parts])
 
     @property
     def n_nodes(self) -> int:
