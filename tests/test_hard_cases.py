@@ -471,9 +471,12 @@ def test_single_wavelength_and_2nm_grids():
     # smooth from one 2 nm step to the next: no spikes (relative second differences)
     sg = fine.single + fine.ground
     assert np.max(np.abs(np.diff(sg / sg.mean(axis=1, keepdims=True), 2, axis=1))) < 1e-3
-    # multiple scattering is linear between the solver's wavelengths: kinks only there
+    # multiple scattering is linear between the solver's wavelengths: kinks only there.
+    # ``multiple`` also carries the delta-M bookkeeping (first scattering through the scaled
+    # extinction less true single scattering), computed per wavelength and smooth: its
+    # curvature is <= 1.5e-5 of the mean here, the kinks at the solver's nodes >= 5.6e-5
     ms = fine.multiple / fine.multiple.mean(axis=1, keepdims=True)
-    kink = np.abs(np.diff(ms, 2, axis=1)) > 1e-6
+    kink = np.abs(np.diff(ms, 2, axis=1)) > 3e-5
     nodes = np.isin(wl[1:-1], [480.0, 580.0, 680.0])
     assert not np.any(kink[:, ~nodes])
 
