@@ -155,9 +155,9 @@ def cli_case(table, case, argv, names, valid, out=None):
         return
     lines = text.splitlines()
     if valid:
-        table.add("command line", case, "wrong failure", f"exit {code}: {text[-200:]}")
+        table.add("command line", case, "wrong failure", f"exit {code}: {text[:200]}")
     elif code != 2 or len(lines) != 1 or "Traceback" in text:
-        table.add("command line", case, "wrong failure", f"exit {code}, {len(lines)} lines: {text[-200:]}")
+        table.add("command line", case, "wrong failure", f"exit {code}, {len(lines)} lines: {text[:200]}")
     elif not any(n in text for n in names):
         table.add("command line", case, "wrong failure", f"does not name {sorted(names)}: {text}")
     elif took >= 1.0:
