@@ -275,3 +275,33 @@ def test_writers_refuse_negative_or_non_finite_radiance(tmp_path):
             image_io.save_outputs(out=str(tmp_path / "a.exr"), radiance=rad, wavelengths=np.array(WL), camera=cam)
         assert e.value.parameter == "radiance"
     assert list(tmp_path.iterdir()) == []
+
+
+# ---------------------------------------------------------------------------- CI: no module skipped whole
+
+
+def test_ci_fails_when_a_whole_module_is_skipped(tmp_path):
+    """tests/conftest.py under SKYMODEL_NO_SKIPPED_MODULES=1 (set by .ci/run): a module
+    skipped at import, or all of whose tests skip, fails the run; without it, skips pass."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    shutil.copy(os.path.join(os.path.dirname(__file__), "conftest.py"), tmp_path / "conftest.py")
+    (tmp_path / "test_gone.py").write_text("import pytest\npytest.importorskip('no_such_module_22')\n\n"
+                                           "def test_a():\n    pass\n")
+    (tmp_path / "test_all_skip.py").write_text("import pytest\n\n@pytest.mark.skip(reason='x')\n"
+                                               "def test_b():\n    pass\n")
+    (tmp_path / "test_fine.py").write_text("import pytest\n\ndef test_c():\n    pass\n\n"
+                                           "@pytest.mark.skip(reason='one skip is fine')\ndef test_d():\n    pass\n")
+    cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:xdist", "-p", "no:cacheprovider", "-c", os.devnull,
+           str(tmp_path)]
+    env = {k: v for k, v in os.environ.items() if k != "SKYMODEL_NO_SKIPPED_MODULES"}
+    plain = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert plain.returncode == 0, plain.stdout + plain.stderr
+    strict = subprocess.run(cmd, capture_output=True, text=True, env=dict(env, SKYMODEL_NO_SKIPPED_MODULES="1"),
+                            cwd=tmp_path)
+    assert strict.returncode == 1, strict.stdout + strict.stderr
+    assert "test_gone.py was skipped whole" in strict.stdout and "test_all_skip.py was skipped whole" in strict.stdout
+    assert "test_fine.py was skipped whole" not in strict.stdout
