@@ -63,7 +63,13 @@ def fake_render(profile, camera, *a, **k):
     return sky.SkyImage(rad, valid, dirs, profile.wavelengths_nm, camera, np.array([0, 0, 1.0]),
                         np.ones(profile.wavelengths_nm.size), {"total_s": 0.0, "orders": 1})
 
+def fake_reduced(profile, camera, el, reduce, n_channels, *a, **k):
+    dirs, valid = camera.directions()
+    img = np.full(camera.shape + (n_channels,), 0.01) * valid[..., None]
+    return img, np.ones(profile.wavelengths_nm.size), {"total_s": 0.0, "orders": 1}
+
 sky.render_sky = fake_render
+sky.render_sky_reduced = fake_reduced  # a render reduced to colour band by band, where the CLI uses one
 fault = os.environ.get("FAULT")
 if fault:
     real = image_io._write_temp
@@ -195,6 +201,7 @@ def test_enospc_through_the_cli_is_one_line_and_exit_1(tmp_path, capsys, monkeyp
     from skymodel.render import sky
 
     monkeypatch.setattr(sky, "render_sky", _fake_render)
+    monkeypatch.setattr(sky, "render_sky_reduced", _fake_reduced)
     real_fdopen = os.fdopen
     monkeypatch.setattr(os, "fdopen", lambda fd, *a, **k: _FullDisk(real_fdopen(fd, *a, **k), 10))
     code = main(["render", "--size", "16", "--wavelength-step", "50", "--quiet", "--out", str(tmp_path / "s.exr")])
@@ -211,6 +218,12 @@ def _fake_render(profile, camera, *a, **k):
     rad = np.full(camera.shape + (profile.wavelengths_nm.size,), 0.01) * valid[..., None]
     return sky.SkyImage(rad, valid, dirs, profile.wavelengths_nm, camera, np.array([0, 0, 1.0]),
                         np.ones(profile.wavelengths_nm.size), {"total_s": 0.0, "orders": 1})
+
+
+def _fake_reduced(profile, camera, el, reduce, n_channels, *a, **k):
+    dirs, valid = camera.directions()
+    return (np.full(camera.shape + (n_channels,), 0.01) * valid[..., None], np.ones(profile.wavelengths_nm.size),
+            {"total_s": 0.0, "orders": 1})
 
 
 def _small_files():  # pragma: no cover - runs in the child
