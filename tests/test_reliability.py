@@ -328,3 +328,42 @@ def test_memory_table_in_the_docs_is_the_current_estimate():
         est = estimate_render_memory(int(w), int(h), int(n_wl), quality, wavelengths_nm=wl)
         assert abs(est.gib - float(est_gib)) <= 0.006, (quality, w, h, est.gib, est_gib)
         assert 0.75 <= est.gib / float(peak_gib) <= 1.25
+
+
+# ---------------------------------------------------------------------------- aerosol names and aliases
+
+
+def _aerosol_names():
+    p = scene.parameter("aerosol")
+    return p, [(a, c) for a, c in p.aliases]
+
+
+@pytest.mark.parametrize("alias, canonical", _aerosol_names()[1])
+def test_every_aerosol_alias_through_atmosphere_and_the_cli(alias, canonical, capsys):
+    """Aliases were once tested only in aerosols.resolve_type (issue 22, item 11): here
+    through Atmosphere and `skymodel profile`, each giving the registry's canonical type."""
+    import json
+
+    from skymodel import Atmosphere
+
+    assert Atmosphere(aerosol=alias).aerosol == canonical
+    assert run_cli(["profile", "--aerosol", alias, "--wavelengths", "550", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert json.dumps(out).count(f'"aerosol": "{canonical}"') >= 1
+
+
+#: Listed by --aerosol (the union of both models' types) but only the opac model has them:
+#: the open finding of docs/reliability.md (#20); strict, so a fix shows up here.
+OPAC_ONLY = {"continental_polluted", "maritime_mineral"}
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param(c, marks=pytest.mark.xfail(strict=True, raises=SkymodelInputError,
+                                            reason="listed by --aerosol, only the opac model has it (#20)"))
+    if c in OPAC_ONLY else c for c in scene.parameter("aerosol").choices])
+def test_every_listed_aerosol_type_is_accepted_by_default(name):
+    """Every name `--aerosol` lists (its help, the registry's choices) works with the
+    default aerosol model."""
+    from skymodel import Atmosphere
+
+    assert Atmosphere(aerosol=name).aerosol == name
