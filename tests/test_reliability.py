@@ -367,3 +367,60 @@ def test_every_listed_aerosol_type_is_accepted_by_default(name):
     from skymodel import Atmosphere
 
     assert Atmosphere(aerosol=name).aerosol == name
+
+
+# ---------------------------------------------------------------------------- cameras, view angles, tone mapping
+
+
+@FAST
+@given(name=st.sampled_from(["equirectangular", "fisheye", "dome", "Fisheye", "pinhole", "", None]),
+       width=st.one_of(st.integers(-5, 40), anything), height=st.one_of(st.none(), st.integers(-5, 40), anything))
+def test_make_camera_gives_unit_directions_or_names_the_parameter(name, width, height):
+    from skymodel.render.cameras import make_camera
+
+    cam = _refused_quickly(lambda: make_camera(name, width, height), {"camera", "width", "height"})
+    if cam is None:
+        return
+    d, valid = cam.directions()
+    assert d.shape == cam.shape + (3,) and valid.shape == cam.shape
+    assert np.allclose(np.linalg.norm(d[valid], axis=-1), 1.0)
+    w = cam.pixel_solid_angles()
+    assert np.all(np.isfinite(w)) and np.all(w >= 0)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(zenith=st.one_of(st.text(max_size=6), st.sampled_from(["nan", "inf", "181", "-1", "", ",", "0,,"])),
+       which=st.sampled_from(["--view-zenith", "--relative-azimuth", "--wavelengths"]))
+def test_radiance_view_angles_refused_in_one_line_before_work(zenith, which, capsys):
+    """Junk view angles or wavelengths: exit 2, one line naming the option, under a second
+    (a valid list would march; those come from tests/test_cli.py)."""
+    from skymodel.cli.options import number_list
+
+    name = which.lstrip("-").replace("-", "_")
+    check = {"view_zenith": "view_zenith", "relative_azimuth": "sun_azimuth", "wavelengths": None}[name]
+    try:
+        number_list(name, zenith, check=check)
+        if name == "wavelengths":
+            from skymodel.wavelengths import ascending_order
+
+            ascending_order(number_list(name, zenith))
+        return  # a valid list: not this test's case
+    except SkymodelInputError:
+        pass
+    t0 = time.perf_counter()
+    code = run_cli(["radiance", which, zenith])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and name in err and len(err.splitlines()) == 1, err
+    assert time.perf_counter() - t0 < 1.0
+
+
+@FAST
+@given(exposure=st.one_of(st.floats(-100, 100), anything))
+def test_tonemap_is_8_bit_or_refused(exposure):
+    from skymodel.render import image_io
+
+    rgb = np.linspace(0, 2, 4 * 8 * 3).reshape(4, 8, 3)
+    img = _refused_quickly(lambda: image_io.tonemap(rgb, exposure), {"exposure_ev"})
+    if img is not None:
+        assert img.dtype == np.uint8 and img.shape == rgb.shape
+        assert exposure is None or -64 <= float(exposure) <= 64  # None: the automatic exposure
