@@ -90,7 +90,7 @@ def cmd_render(args) -> int:
     else:  # straight to CIE XYZ (the sky-view table for large images): no spectral cube
         xyz, _, info = render_sky_reduced(profile, camera, sun.elevation_deg, xyz_reduction(wl), 3,
                                           sun.azimuth_deg, args.observer_altitude, settings, band_pixels=1 << 20,
-                                          progress=prog.order, include_sun=not args.no_sun)
+                                          progress=prog.order, include_sun=not args.no_sun, solutions=False)
         radiance = None
     if not args.quiet:
         print(file=sys.stderr)

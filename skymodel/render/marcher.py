@@ -62,6 +62,9 @@ from skymodel.scene import parameter
 MAX_OBSERVER_ALTITUDE_M = parameter("observer_altitude").maximum
 #: Threads marching the direction grid's chunks (:meth:`SkyMarcher.exact_in_threads`).
 MARCH_THREADS = min(2, os.cpu_count() or 1)
+#: Directions marched at once by all the threads together: at most ~0.45 GB of working
+#: arrays at 81 wavelengths and 64 view steps (MarchSettings.chunk, 2048, would be ~0.9 GB).
+MARCH_PIECE = 1024
 #: Largest peak optical depth (sun path + view path) the aureole table covers; beyond
 #: it the light is spread over tens of degrees and the table's last column is used.
 AUREOLE_MAX_PEAK_TAU = 30.0
@@ -350,11 +353,12 @@ class SkyMarcher:
     def exact_in_threads(self, d, threads: int | None = None):
         """``_exact`` over directions d (N, 3) in chunks, ``threads`` at a time (default
         :data:`MARCH_THREADS`; numpy releases the GIL in its array operations). Each thread
-        takes chunks of ``settings.chunk // threads`` directions, so the working memory stays
-        that of one ``settings.chunk``. Returns the list of the chunks' (single, multiple,
-        ground), in order."""
+        takes chunks of ``min(settings.chunk, MARCH_PIECE) // threads`` directions, so the
+        working memory stays that of one chunk of at most :data:`MARCH_PIECE` directions
+        (the result does not depend on the chunks, ``tests/test_marcher.py``). Returns the
+        list of the chunks' (single, multiple, ground), in order."""
         n = max(1, int(MARCH_THREADS if threads is None else threads))
-        step = max(1, self.settings.chunk // n)
+        step = max(1, min(self.settings.chunk, MARCH_PIECE) // n)
         starts = range(0, d.shape[0], step)
         if n == 1 or len(starts) == 1:
             return [self._exact(d[i:i + step]) for i in starts]
