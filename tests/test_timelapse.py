@@ -88,6 +88,7 @@ def test_days_at_one_sun_elevation_solve_once_per_ozone_column(tmp_path):
     assert all(abs(f["sun_elevation_deg"] + 4.0) < 0.01 for f in frames)
     assert len({round(f["ozone_du"], 6) for f in frames}) == 3 and record["solves"] == 3
     assert len({f["preview_average_luminance"] for f in frames}) == 1  # one exposure for the year
+    assert all(0.15 < f["zenith_xy"][0] < 0.35 and 0.15 < f["zenith_xy"][1] < 0.35 for f in frames)  # blue
 
 
 def test_bad_input_is_refused_before_any_work(tmp_path, capsys):

@@ -21,8 +21,9 @@ Output in the ``--out`` folder:
   metadata (UTC instant, local time, sun, ozone) in its ``skymodel`` header attribute,
   written atomically as it is rendered;
 * ``frames.json``: the sequence and every finished frame (UTC and local time, zone, sun
-  elevation/azimuth, Earth-sun distance, day of the year, ozone column, whether the solve
-  was reused, the preview exposure), rewritten atomically after each frame;
+  elevation/azimuth, Earth-sun distance, day of the year, ozone column, the zenith's CIE xy
+  chromaticity and luminance, whether the solve was reused, the preview exposure),
+  rewritten atomically after each frame;
 * once every frame is rendered: ``frame_0001.png`` ... previews at one exposure curve for
   the whole sequence (``--exposure-curve``: ``follow`` keys each frame to its log-average
   luminance smoothed over 3 frames, so nothing flickers and dusk stays readable;
@@ -179,6 +180,21 @@ def exposure_curve(log_averages, rule: str) -> np.ndarray:
 # ----------------------------------------------------------------------------- output
 
 
+def zenith_colour(xyz, directions, valid, within_deg: float = 5.0) -> dict:
+    """The sky's colour at the zenith: the mean CIE XYZ of the valid pixels within
+    ``within_deg`` of it (the one nearest when none is), as ``zenith_xy`` (CIE 1931
+    chromaticity) and ``zenith_Y`` (W m^-2 sr^-1, ybar-weighted; 1 = 683 cd m^-2)."""
+    z = np.where(valid, directions[..., 2], -np.inf)
+    near = z >= math.cos(math.radians(within_deg))
+    if not near.any():
+        near = z == z.max()
+    X, Y, Z = xyz[near].mean(axis=0)
+    total = X + Y + Z
+    xy = [float(X / total), float(Y / total)] if total > 0 else [None, None]
+    return {"zenith_xy": xy, "zenith_Y": float(Y)}
+
+
+
 def contact_sheet(images: list, max_tile_width: int = 256) -> np.ndarray:
     """The frames (uint8 (H, W, 3) each) in rows, left to right, in a sheet of about
     16:9, reduced by an integer stride to at most ``max_tile_width`` px wide, a 2-px
@@ -326,7 +342,8 @@ def cmd_timelapse(args) -> int:
                                            "skymodel": json.dumps(header, default=_json_default)})
             store[k] = rgb
             log_avg.append(image_io.auto_exposure_luminance(rgb, valid))
-            record["frames"].append({"exr": f"{name}.exr", "png": None, **meta, "log_average_luminance": log_avg[-1]})
+            record["frames"].append({"exr": f"{name}.exr", "png": None, **meta, "log_average_luminance": log_avg[-1],
+                                     **zenith_colour(xyz, img.directions, valid)})
             _write_json_atomic(folder / "frames.json", record)
             prog.frame(k + 1, f"{sun.time_local} sun {sun.elevation_deg:.2f} deg "
                               f"({'solve reused' if img.info['solve_reused'] else 'solved'}, {meta['render_s']:.1f} s)")
@@ -356,7 +373,8 @@ def cmd_timelapse(args) -> int:
         store_path.unlink(missing_ok=True)
     prog.line(f"{len(frames)} frames, {record['solves']} multiple-scattering solve(s) ({record['solve_s']:.1f} s), "
               f"{record['wall_s']:.1f} s in all; wrote {folder}/frames.json, contact_sheet.png"
-              + (f", {record['video']}" if record["video"] else " (no video: install imageio-ffmpeg or Pillow)"))
+              + (f", {record['video']}" if record["video"] else
+                 "" if args.no_video else " (no video: install imageio-ffmpeg or Pillow)"))
     if args.json:
         print(json.dumps({k: v for k, v in record.items() if k != "frames"} | {"frames": len(record["frames"])},
                          default=_json_default))
