@@ -16,6 +16,14 @@ the sky (Build Sky with the given settings) and an equirectangular panoramic cam
 ``--camera-height`` metres above the ground whose image centre looks horizontally toward
 ``--center-azimuth`` (default: the sun's azimuth). The PNG goes through the scene's view
 transform (AgX and the add-on's exposure); ``--exr`` also writes the scene-linear image.
+A day as a sequence (``--date --from --to --every [--timezone]``, as ``skymodel
+timelapse``): the frames are keyframed and baked (:mod:`blender_addon.animation`, one
+multiple-scattering solve for the day) and every frame is rendered to
+``--out``/frame_NNNN.png, the camera centred on the sun's azimuth at the middle frame::
+
+    python -m blender_addon.render --location zaragoza --date 2026-06-21 --from 19:00 \\
+        --to 22:30 --every 10min --timezone Europe/Madrid --out frames/
+
 Exit status 0 on success, 2 for bad input (the message names the option and the value as
 typed, checked before Blender does any work: out of range is refused, never clamped; the
 documented bounds such as ``--lat 90`` are accepted), 130 when interrupted (Ctrl+C: one line,
@@ -78,8 +86,12 @@ def parse_args(argv=None):
     g.add_argument("--size", type=_size, default=(256, 128), help="WIDTHxHEIGHT of the render")
     g.add_argument("--camera-height", type=float, default=1.7, help="metres above the ground")
     g.add_argument("--center-azimuth", type=float, default=None, help="image centre azimuth (default: the sun's)")
-    g.add_argument("--out", required=True, help="PNG file (.png)")
+    g.add_argument("--out", required=True, help="PNG file (.png); with --date a folder for frame_NNNN.png")
     g.add_argument("--exr", default=None, help="also write the scene-linear image (OpenEXR)")
+    g = ap.add_argument_group("a day as a sequence (blender_addon.animation: Animate Day, then Bake Time of Day)")
+    for name in ("date", "time_from", "time_to", "every", "timezone"):
+        p = scene.parameter(name)
+        g.add_argument(p.flag, dest=name, default=None, help=p.help_text())
     return ap.parse_args(argv)
 
 
@@ -136,9 +148,63 @@ def check_options(o) -> None:
             raise SkymodelInputError("--time", o.time, "either --time or --sun-elevation/--sun-azimuth, not both")
     from skymodel.render.image_io import check_output_path
 
+    if getattr(o, "date", None) is not None:  # a day: --out is a folder, the frames checked by the core
+        _check_sequence(o)
+        return
     for flag, path in (("--out", o.out), ("--exr", o.exr)):
         if path is not None:
             check_output_path(flag, path, OUTPUT_EXTENSIONS[flag])
+
+
+def _check_sequence(o) -> None:
+    """A day sequence's options (``--date``; the frames placed by
+    :func:`skymodel.render.timeline.day_frames` at the location, every frame's sun checked),
+    and ``--out`` a folder that exists or can be made, before any work."""
+    from skymodel.optics.atmosphere import Atmosphere
+    from skymodel.render import timeline
+
+    if o.time or o.sun_elevation is not None or o.sun_azimuth is not None or o.exr:
+        raise SkymodelInputError("--date", o.date, "a day without --time, --sun-elevation/--sun-azimuth or --exr")
+    if o.mode != "environment":
+        raise SkymodelInputError("--mode", o.mode, "environment for a day sequence")
+    custom = o.location is None and o.lat is not None
+    atm = Atmosphere(location=None if custom else (o.location or "rural"), latitude=o.lat if custom else None,
+                     longitude=o.lon if custom else None, aerosol=o.aerosol)
+    timeline.day_frames(atm.latitude, atm.longitude, o.date, o.time_from, o.time_to, o.every, o.timezone)
+    folder = os.path.abspath(o.out)
+    if os.path.exists(folder) and not os.path.isdir(folder):
+        raise SkymodelInputError("--out", o.out, "a folder for the frames (this is a file)")
+    if not os.path.isdir(os.path.dirname(folder)):
+        raise SkymodelInputError("--out", o.out, "a folder in an existing folder")
+
+
+def render_day(o, progress=print) -> list:
+    """``--date``: a new scene whose frames run through the day (Animate Day), the sky of
+    every frame baked with one shared solve (Bake Time of Day, the images in
+    ``--out``/bake-<id>/), then every frame rendered to ``--out``/frame_NNNN.png. Returns
+    the paths written."""
+    from . import animation
+
+    _ensure_registered()
+    scene = _new_scene(o)
+    s = scene.world.skymodel
+    _apply_options(s, o)
+    frames = animation.animate_day(scene, s, o.date, o.time_from, o.time_to, o.every, o.timezone)
+    os.makedirs(o.out, exist_ok=True)
+    ctx = SimpleNamespace(scene=scene, window_manager=None)
+    animation.bake(ctx, folder=o.out, progress=lambda t: progress(f"[skymodel] {t}") if progress else None)
+    az = frames[len(frames) // 2].azimuth_deg if o.center_azimuth is None else o.center_azimuth
+    scene.camera.rotation_euler = (math.radians(90.0), 0.0, -math.radians(az))
+    scene.render.image_settings.color_depth = "8"
+    written = []
+    for k in range(scene.frame_start, scene.frame_end + 1):
+        scene.frame_set(k)
+        path = os.path.join(os.path.abspath(o.out), f"frame_{k:04d}.png")
+        _render(scene, path, "PNG")
+        written.append(path)
+        if progress:
+            progress(f"[skymodel] frame {k}/{scene.frame_end}: {frames[k - 1].time_local} -> {path}")
+    return written
 
 
 def _ensure_registered():
@@ -197,6 +263,19 @@ def build_scene(o, progress=print):
     _ensure_registered()
     from . import ops
 
+    scene = _new_scene(o)
+    cam = scene.camera
+    _apply_options(scene.world.skymodel, o)
+    ctx = SimpleNamespace(scene=scene, window_manager=None)
+    result = ops.build(ctx, progress=lambda t: progress(f"[skymodel] {t}") if progress else None)
+    az = result.sun_azimuth_deg if o.center_azimuth is None else o.center_azimuth
+    # camera: local -Z forward; X 90 deg looks north (+Y), Z rotation -az turns it to azimuth az
+    cam.rotation_euler = (math.radians(90.0), 0.0, -math.radians(az))
+    return scene
+
+
+def _new_scene(o):
+    """A new scene (``Skymodel Render``) with a world and the panoramic camera."""
     scene = bpy.data.scenes.new("Skymodel Render")
     world = bpy.data.worlds.new("Skymodel World")
     scene.world = world
@@ -215,12 +294,6 @@ def build_scene(o, progress=print):
     scene.collection.objects.link(cam)
     scene.camera = cam
     cam.location = (0.0, 0.0, float(o.camera_height))
-    _apply_options(world.skymodel, o)
-    ctx = SimpleNamespace(scene=scene, window_manager=None)
-    result = ops.build(ctx, progress=lambda t: progress(f"[skymodel] {t}") if progress else None)
-    az = result.sun_azimuth_deg if o.center_azimuth is None else o.center_azimuth
-    # camera: local -Z forward; X 90 deg looks north (+Y), Z rotation -az turns it to azimuth az
-    cam.rotation_euler = (math.radians(90.0), 0.0, -math.radians(az))
     return scene
 
 
@@ -263,6 +336,10 @@ def main(argv=None) -> int:
     try:
         check_options(o)
         out = os.path.abspath(o.out)
+        if o.date is not None:
+            written = render_day(o)
+            print(f"[skymodel] wrote {len(written)} frames into {out} in {time.perf_counter() - t0:.1f} s")
+            return 0
         scene = build_scene(o)
         if o.exr:
             _render(scene, os.path.abspath(o.exr), "OPEN_EXR")

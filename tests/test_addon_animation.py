@@ -182,3 +182,22 @@ def test_remove_sky_after_a_bake_removes_the_exposure_keys_and_images(day, tmp_p
     assert not [db for db in bpy.data.images if db.name.startswith(animation.SEQUENCE_NAME)]
     sc.frame_set(3)
     assert sc.view_settings.exposure == pytest.approx(exposure_before)
+
+
+def test_headless_entry_renders_a_day(new_sky_scene, small_preview, tmp_path, monkeypatch, capsys):
+    from blender_addon import render
+
+    monkeypatch.setenv("SKYMODEL_CACHE_DIR", str(tmp_path / "cache"))
+    new_sky_scene()
+    out = tmp_path / "frames"
+    day = ["--location", "zaragoza", "--date", "2026-06-21", "--from", "20:00", "--to", "21:30", "--every", "45min",
+           "--timezone", "Europe/Madrid", "--size", "16x8", "--samples", "1", "--image-width", "32"]
+    assert render.main([*day, "--out", str(out)]) == 0
+    pngs = sorted(p.name for p in out.glob("frame_*.png"))
+    assert pngs == ["frame_0001.png", "frame_0002.png", "frame_0003.png"]
+    assert (out / "frame_0001.png").read_bytes() != (out / "frame_0003.png").read_bytes()
+    assert len(list(out.glob("bake-*/sky_*.exr"))) == 3
+    # refused before any work, naming the option
+    capsys.readouterr()
+    assert render.main([*day[:6], "--to", "23:59", *day[8:], "--out", str(tmp_path / "night")]) == 2
+    assert "time_to=" in capsys.readouterr().err and not (tmp_path / "night").exists()
