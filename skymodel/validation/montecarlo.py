@@ -514,8 +514,562 @@ def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng):
     return contrib
 
 
+
+# --------------------------------------------------------------------------------------
+# The "sunlit" estimator: line integrals toward the sunlit air (deep twilight)
+# --------------------------------------------------------------------------------------
+
+#: Estimators of :func:`trace_radiance` (see its docstring).
+ESTIMATORS = ("nee", "sunlit")
+#: Intervals of the sampling density along a line (the sunlit estimator): at a path's
+#: vertices (per path: cheap) and along the view lines (once per direction: fine enough
+#: for the narrow bright part of a grazing line just outside the shadow).
+_LINE_INTERVALS = 8
+_VIEW_LINE_INTERVALS = 256
+#: Fraction of line samples drawn uniformly over the line's sunlit length (defensive
+#: mixture: keeps the density positive wherever the integrand may be).
+_LINE_DEFENSIVE = 0.1
+
+
+def _shadow_interval(p, d, t_end, sun, R):
+    """The part [sa, sb] of [0, t_end] of the lines p + t d inside the Earth's geometric
+    shadow (points x with x.s <= 0 and |x - (x.s) s| <= R: the cylinder behind the planet;
+    the same test as ``optical_depth_to_top``'s ``blocked``). The shadow is convex, so it
+    is one interval; empty: sa = sb = t_end."""
+    ps, ds = p @ sun, d @ sun
+    A = np.sum(np.cross(d, sun) ** 2, axis=1)  # 1 - (d.s)^2 without the cancellation
+    B = 2.0 * (_rowdot(p, d) - ps * ds)
+    C = (_rowdot(p, p) - ps * ps - R * R)  # perp^2 - R^2 = A t^2 + B t + C
+    inf = np.full(p.shape[0], np.inf)
+    c1, c2 = -inf.copy(), inf.copy()
+    disc = B * B - 4.0 * A * C
+    quad = A > 1e-14
+    ok = quad & (disc > 0.0)
+    sq = np.sqrt(np.where(ok, disc, 0.0))
+    q = -0.5 * (B + np.where(B >= 0.0, sq, -sq))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r1 = np.where(ok, q / np.where(ok, A, 1.0), 0.0)
+        r2 = np.where(ok & (q != 0.0), C / np.where(q != 0.0, q, 1.0), r1)
+    c1 = np.where(ok, np.minimum(r1, r2), np.where(quad, inf, np.where(C <= 0.0, -inf, inf)))
+    c2 = np.where(ok, np.maximum(r1, r2), np.where(quad, -inf, np.where(C <= 0.0, inf, -inf)))
+    # half-space x.s <= 0: ps + t ds <= 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        th = -ps / np.where(ds != 0.0, ds, 1.0)
+    h1 = np.where(ds > 0.0, -inf, np.where(ds < 0.0, th, np.where(ps <= 0.0, -inf, inf)))
+    h2 = np.where(ds > 0.0, th, np.where(ds < 0.0, inf, np.where(ps <= 0.0, inf, -inf)))
+    sa = np.clip(np.maximum(c1, h1), 0.0, t_end)
+    sb = np.clip(np.minimum(c2, h2), 0.0, t_end)
+    empty = ~(sb > sa)
+    return np.where(empty, t_end, sa), np.where(empty, t_end, sb)
+
+
+def _line_transmittance_setup(med, p, d, w):
+    """What :func:`_line_transmittance` needs: along d from p, or (where that ray meets the
+    ground) from the point back along -d, whose ray from p never does."""
+    tau_f, blk = med.optical_depth_to_top(p, d, w)
+    tau_p = tau_f.copy()
+    if np.any(blk):
+        tau_p[blk], _ = med.optical_depth_to_top(p[blk], -d[blk], w[blk])
+    return tau_p, blk
+
+
+def _line_transmittance(med, x, d, w, tau_p, blk):
+    """Exact transmittance from the line's start p to points x on it (ahead of p)."""
+    tau_x, _ = med.optical_depth_to_top(x, np.where(blk[:, None], -d, d), w)
+    tau = np.where(blk, tau_x - tau_p, tau_p - tau_x)
+    return np.exp(-np.maximum(tau, 0.0))
+
+
+class _Line:
+    """Rays p + t d (M of them) and an importance density over t for an integral along them.
+
+    kind ``"sun"``: the single-scattering source seen from p, integrand
+    f(t) = T(p, x) sum_c sigma_c(x) p_c(d.s) T_sun(x) E over the sunlit parts of [0, t_end]
+    (zero in the geometric shadow, exactly). kind ``"collide"``: f(t) = T(p, x) sigma_t(x)
+    over [0, t_end] (a forced first collision). The density is piecewise log-linear (linear
+    where a node value is 0) between the exact values of f at ``_LINE_INTERVALS`` + 1
+    nodes uniform in the sunlit length, mixed with a uniform density (``_LINE_DEFENSIVE``).
+    Any positive density gives an unbiased estimate f(t) / pdf(t); this one makes it
+    nearly constant."""
+
+    def __init__(self, med, p, d, w, sun, t_end, kind, importance=None, intervals=None):
+        self.med, self.p, self.d, self.w, self.sun, self.kind = med, p, d, w, sun, kind
+        self.n = n = _LINE_INTERVALS if intervals is None else int(intervals)
+        self.importance = importance  # "collide": density ~ f(t) importance(rows, altitude), f unchanged
+        m = p.shape[0]
+        if kind == "sun":
+            sa, sb = _shadow_interval(p, d, t_end, sun, med.R)
+        else:
+            sa = sb = t_end
+        self.l1, self.a2 = sa, sb
+        self.length = sa + (t_end - sb)
+        self.live = self.length > 0.0
+        self.tau_p, self.blk = _line_transmittance_setup(med, p, d, w)
+        u = self.length[:, None] * (np.arange(n + 1) / n)[None, :]  # (M, n+1)
+        rows = np.repeat(np.arange(m), n + 1)
+        g = self.integrand(rows, u.ravel()).reshape(m, n + 1)
+        if importance is not None:
+            x = self.p[rows] + self.t_of(rows, u.ravel())[:, None] * self.d[rows]
+            g = g * importance(rows, np.sqrt(_rowdot(x, x)) - med.R).reshape(m, n + 1)
+        self.g = g
+        g0, g1 = g[:, :-1], g[:, 1:]
+        both = (g0 > 0.0) & (g1 > 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a = np.where(both, np.log(np.where(both, g1, 1.0) / np.where(both, g0, 1.0)), 0.0)
+            ratio = np.where(np.abs(a) > 1e-9, (g1 - g0) / np.where(a != 0.0, a, 1.0), 0.5 * (g0 + g1))
+        self.a = a
+        self.both = both
+        mass = np.where(both, ratio, 0.5 * (g0 + g1)) * (self.length / n)[:, None]  # (M, n)
+        self.cdf = np.cumsum(mass, axis=1)
+        self.total = self.cdf[:, -1]
+
+    def t_of(self, rows, u):
+        """Distance along the line of sunlit-length coordinate u (skips the shadow)."""
+        return np.where(u < self.l1[rows], u, self.a2[rows] + (u - self.l1[rows]))
+
+    def integrand(self, rows, u):
+        med, w = self.med, self.w[rows]
+        t = self.t_of(rows, u)
+        d = self.d[rows]
+        x = self.p[rows] + t[:, None] * d
+        h = np.sqrt(_rowdot(x, x)) - med.R
+        T = _line_transmittance(med, x, d, w, self.tau_p[rows], self.blk[rows])
+        comp = med.components_at(h, w)
+        if self.kind == "collide":
+            return T * comp.sum(axis=0)
+        mu = d @ self.sun
+        ph = np.concatenate([med.rayleigh_phase(mu, w)[None], med.aerosol_phase(mu, w)])
+        tau_s, _ = med.optical_depth_to_top(x, self.sun, w)
+        return T * (comp[:-1] * ph).sum(axis=0) * np.exp(-tau_s) * med.e_sun[w]
+
+    def sample(self, rows, rng):
+        """One sample of u per entry of ``rows``: (u, f(u) / pdf(u)); 0 where the line has no
+        sunlit length."""
+        n = self.n
+        L = self.length[rows]
+        k = rows.size
+        G = self.total[rows]
+        use_g = (rng.random(k) >= _LINE_DEFENSIVE) & (G > 0.0)
+        v = rng.random(k)
+        # uniform part
+        u = v * L
+        gi = np.flatnonzero(use_g)
+        if gi.size:
+            rg = rows[gi]
+            target = v[gi] * G[gi]
+            cdf = self.cdf[rg]
+            j = np.minimum((cdf < target[:, None]).sum(axis=1), n - 1)
+            lo = np.where(j > 0, cdf[np.arange(gi.size), j - 1], 0.0)
+            mj = cdf[np.arange(gi.size), j] - lo
+            with np.errstate(divide="ignore", invalid="ignore"):
+                y = np.clip(np.where(mj > 0.0, (target - lo) / mj, 0.5), 0.0, 1.0)
+            g0, g1, a = self.g[rg, j], self.g[rg, j + 1], self.a[rg, j]
+            x = self._inverse(y, g0, g1, a, self.both[rg, j])
+            u[gi] = (j + x) * (L[gi] / n)
+        u = np.clip(u, 0.0, L)
+        pdf = self._pdf(rows, u)
+        f = np.zeros(k)
+        ok = (L > 0.0) & (pdf > 0.0)
+        if np.any(ok):
+            f[ok] = self.integrand(rows[ok], u[ok]) / pdf[ok]
+        return u, f
+
+    @staticmethod
+    def _inverse(y, g0, g1, a, both):
+        """x in [0, 1] with the fraction y of the interval's mass below it."""
+        x = y.copy()
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+            # log-linear: density ~ exp(a x)
+            pos = both & (a > 1e-9)
+            neg = both & (a < -1e-9)
+            x = np.where(pos, 1.0 + np.log(y + (1.0 - y) * np.exp(-np.where(pos, a, 1.0))) / np.where(pos, a, 1.0), x)
+            x = np.where(neg, np.log1p(y * np.expm1(np.where(neg, a, -1.0))) / np.where(neg, a, -1.0), x)
+            # linear (a node is 0): density ~ g0 + (g1 - g0) x
+            lin = ~both
+            den = g0 + np.sqrt(np.maximum(g0 * g0 + y * (g1 * g1 - g0 * g0), 0.0))
+            xl = np.where(den > 0.0, y * (g0 + g1) / np.where(den > 0.0, den, 1.0), y)
+            x = np.where(lin, xl, x)
+        return np.clip(np.nan_to_num(x, nan=0.5), 0.0, 1.0)
+
+    def _pdf(self, rows, u):
+        """Density (per metre of sunlit length) of :meth:`sample` at u."""
+        n = self.n
+        L = self.length[rows]
+        G = self.total[rows]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            du = L / n
+            s = np.where(L > 0.0, u / np.where(L > 0.0, du, 1.0), 0.0)
+        j = np.clip(s.astype(int), 0, n - 1)
+        x = np.clip(s - j, 0.0, 1.0)
+        g0, g1 = self.g[rows, j], self.g[rows, j + 1]
+        both = self.both[rows, j]
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            gl = np.where(both, np.exp((1.0 - x) * np.log(np.where(both, g0, 1.0)) + x * np.log(np.where(both, g1, 1.0))),
+                          g0 + (g1 - g0) * x)
+            p_g = np.where(G > 0.0, gl / np.where(G > 0.0, G, 1.0), 0.0)
+            p_u = np.where(L > 0.0, 1.0 / np.where(L > 0.0, L, 1.0), 0.0)
+        frac = np.where(G > 0.0, 1.0 - _LINE_DEFENSIVE, 0.0)
+        return frac * p_g + (1.0 - frac) * p_u
+
+
+def _ground_term(med, p, d, w, sun, t_end, hit, tau_p=None, blk=None):
+    """Sunlight reflected by the (Lambertian) ground at the end of the lines p + t d that
+    end on it, times the transmittance back to p (exact; 0 elsewhere)."""
+    out = np.zeros(p.shape[0])
+    if not np.any(hit):
+        return out
+    i = np.flatnonzero(hit)
+    xg = p[i] + t_end[i, None] * d[i]
+    nrm = xg / np.linalg.norm(xg, axis=1, keepdims=True)
+    mu0 = nrm @ sun
+    a = med.albedo[w[i]]
+    lit = (mu0 > 0.0) & (a > 0.0)
+    if not np.any(lit):
+        return out
+    i, xg, mu0, a = i[lit], xg[lit], mu0[lit], a[lit]
+    if tau_p is None:
+        tp, bk = _line_transmittance_setup(med, p[i], d[i], w[i])
+    else:
+        tp, bk = tau_p[i], blk[i]
+    T = _line_transmittance(med, xg, d[i], w[i], tp, bk)
+    tau_s, _ = med.optical_depth_to_top(xg, sun, w[i])
+    out[i] = T * a / np.pi * mu0 * np.exp(-tau_s) * med.e_sun[w[i]]
+    return out
+
+
+def _sunlit_estimate(med, p, d, w, sun, rng):
+    """One-sample estimate of the sunlight scattered once (in the air or by the ground)
+    on its way to p from direction -d: the expectation of next-event estimation at the
+    next event of a free flight from p along d (what it replaces)."""
+    out = np.zeros(p.shape[0])
+    t0, t1, hit = atmosphere_segment(p, d, med.R, med.R + med.top)
+    live = t1 > t0
+    if not np.any(live):
+        return out
+    i = np.flatnonzero(live)
+    pp = p[i] + t0[i, None] * d[i]
+    t_end = t1[i] - t0[i]
+    sa, sb = _shadow_interval(pp, d[i], t_end, sun, med.R)
+    lit = (sa > 0.0) | (sb < t_end)  # a shadowed line's ground end is shadowed too
+    if not np.any(lit):
+        return out
+    i, pp, t_end = i[lit], pp[lit], t_end[lit]
+    line = _Line(med, pp, d[i], w[i], sun, t_end, "sun")
+    _, f = line.sample(np.arange(i.size), rng)
+    out[i] = f + _ground_term(med, pp, d[i], w[i], sun, t_end, hit[i], line.tau_p, line.blk)
+    return out
+
+
+def _scatter(med, P, D, Wl, ev, beta, J, rng):
+    """New directions at the events (air collisions and ground hits) and the weights'
+    update (single-scattering albedo and phase mass; ground albedo). Returns the new
+    directions; ``beta`` and ``J`` are updated in place."""
+    n_reg = med.n_regime
+    nxt = D.copy()
+    ci = np.flatnonzero(ev == _COLLIDE)
+    if ci.size:
+        Pc, wc = P[ci], Wl[ci]
+        h = np.sqrt(_rowdot(Pc, Pc)) - med.R
+        comp = med.components_at(h, wc)
+        sig_sc = comp[:-1]
+        sig_s = sig_sc.sum(axis=0)
+        sig_t = sig_s + comp[-1]
+        cum = np.cumsum(sig_sc, axis=0)
+        comp_i = np.minimum((rng.random(ci.size) * sig_s[None, :] >= cum).sum(axis=0), n_reg)
+        cos_t = np.empty(ci.size)
+        wt = sig_s / sig_t
+        m = comp_i == 0
+        if np.any(m):
+            cos_t[m] = med.sample_rayleigh_cos(wc[m], rng)
+        for rg in range(n_reg):
+            m = comp_i == rg + 1
+            if np.any(m):
+                cos_t[m] = med.sample_aerosol_cos(rg, wc[m], rng)
+                wt[m] *= med.phase_mass[rg, wc[m]]
+        beta[ci] *= wt
+        nxt[ci] = _rotate(D[ci], cos_t, rng)
+    gi = np.flatnonzero(ev == _GROUND)
+    if gi.size:
+        Pg = P[gi]
+        nrm = Pg / np.linalg.norm(Pg, axis=1, keepdims=True)
+        beta[gi] *= med.albedo[Wl[gi]]
+        nxt[gi] = _rotate(nrm, np.sqrt(rng.random(gi.size)), rng)
+        J[gi] = 0
+    return nxt
+
+
+#: The direction guide of the sunlit estimator: bins in elevation (finer near the
+#: horizon, where the sunlit air is seen from below in deep twilight) and in azimuth from
+#: the local sun's azimuth (folded: the sky is symmetric about the sun's vertical).
+_GUIDE_EL_EDGES = np.radians(90.0 * np.sign(np.linspace(-1, 1, 81)) * np.abs(np.linspace(-1, 1, 81)) ** 1.5)
+_GUIDE_PHI_EDGES = np.linspace(0.0, np.pi, 25)
+#: Whether the sunlit estimator uses its direction guide with the sun below the horizon
+#: (False: the path's own direction only; the guide is never used with the sun up).
+_USE_GUIDE = True
+#: Altitudes (m) of the points of each view line the guide is built from; a vertex uses
+#: the guide of the nearest (in altitude) of them.
+_GUIDE_ALTITUDES_M = np.array([300.0, 1500.0, 4000.0, 8000.0, 15000.0, 25000.0, 40000.0, 60000.0])
+
+
+def _local_frame(x, sun):
+    """(up, toward the sun's azimuth, left of it) at points x (M, 3)."""
+    up = x / np.linalg.norm(x, axis=1, keepdims=True)
+    sh = sun[None, :] - (up @ sun)[:, None] * up
+    n = np.linalg.norm(sh, axis=1)
+    alt = np.cross(up, np.array([1.0, 0.0, 0.0]))
+    alt = np.where(np.linalg.norm(alt, axis=1, keepdims=True) > 1e-6, alt, np.cross(up, np.array([0.0, 1.0, 0.0])))
+    sh = np.where(n[:, None] > 1e-9, sh, alt)
+    e1 = sh / np.linalg.norm(sh, axis=1, keepdims=True)
+    return up, e1, np.cross(up, e1)
+
+
+class _Guide:
+    """Per view line, a density over directions (bins of elevation and sun-relative
+    azimuth in the local frame of a vertex) proportional to the sunlit single-scattering
+    line integral seen from a few points of that line (its node quadrature at the bin
+    centres). Only a proposal: the estimator divides by the exact density."""
+
+    def __init__(self, med, points, w, sun):
+        ge, gp = _GUIDE_EL_EDGES, _GUIDE_PHI_EDGES
+        ne, nph = ge.size - 1, gp.size - 1
+        self.sin_edges = np.sin(ge)
+        self.omega = 2.0 * np.outer(np.diff(self.sin_edges), np.diff(gp)).ravel()  # folded bins, sr
+        el_c = np.arcsin(0.5 * (self.sin_edges[1:] + self.sin_edges[:-1]))
+        ph_c = 0.5 * (gp[1:] + gp[:-1])
+        el_c, ph_c = np.repeat(el_c, nph), np.tile(ph_c, ne)
+        n_g, n_k = points.shape[:2]
+        nb = el_c.size
+        x = np.repeat(points.reshape(-1, 3), nb, axis=0)
+        up, e1, e2 = _local_frame(x, sun)
+        el, ph = np.tile(el_c, n_g * n_k), np.tile(ph_c, n_g * n_k)
+        d = (np.cos(el) * np.cos(ph))[:, None] * e1 + (np.cos(el) * np.sin(ph))[:, None] * e2 + np.sin(el)[:, None] * up
+        ww = np.repeat(w, n_k * nb)
+        val = np.zeros(x.shape[0])
+        t0, t1, _ = atmosphere_segment(x, d, med.R, med.R + med.top)
+        t_end = np.maximum(t1 - t0, 0.0)
+        sa, sb = _shadow_interval(x, d, t_end, sun, med.R)
+        lit = np.flatnonzero((sa > 0.0) | (sb < t_end))
+        if lit.size:
+            val[lit] = _Line(med, x[lit], d[lit], ww[lit], sun, t_end[lit], "sun").total
+        val = val.reshape(n_g * n_k, nb) * self.omega  # row = line * n_k + point
+        n_g = n_g * n_k
+        #: approximate sunlit in-scattered radiance at each row's point (sum over bins), W m^-2 nm^-1
+        self.inscatter = val.sum(axis=1)
+        # spread a fifth of each bin's weight over its neighbours: bins whose centre missed
+        # a sliver of sunlit air keep some density
+        v3 = val.reshape(n_g, ne, nph)
+        pad = np.pad(v3, ((0, 0), (1, 1), (1, 1)), mode="edge")
+        nbr = np.max([pad[:, 1 + a:1 + a + ne, 1 + b:1 + b + nph] for a in (-1, 0, 1) for b in (-1, 0, 1)], axis=0)
+        val = (0.8 * v3 + 0.2 * nbr * self.omega.reshape(ne, nph) / np.maximum(self.omega.max(), 1e-300)).reshape(n_g, nb)
+        self.prob = val / np.maximum(val.sum(axis=1, keepdims=True), 1e-300)
+        self.ok = val.sum(axis=1) > 0.0
+        cdf = np.cumsum(self.prob, axis=1)
+        cdf[:, -1] = 1.0
+        self._cdf_flat = (cdf + np.arange(n_g)[:, None]).ravel()
+        self.nb, self.nph = nb, nph
+
+    @staticmethod
+    def row(line, x, R):
+        """Guide row of view line ``line`` for vertices at x: the nearest guide altitude."""
+        h = np.sqrt(_rowdot(x, x)) - R
+        mid = 0.5 * (_GUIDE_ALTITUDES_M[1:] + _GUIDE_ALTITUDES_M[:-1])
+        return line * _GUIDE_ALTITUDES_M.size + np.searchsorted(mid, h)
+
+    def sample(self, g, x, sun, rng):
+        """Directions at points x (M, 3) for guide rows g (M,) (rows without a guide: any)."""
+        m = g.size
+        b = np.searchsorted(self._cdf_flat, g + rng.random(m), side="right") - g * self.nb
+        b = np.clip(b, 0, self.nb - 1)
+        ie, ip = b // self.nph, b % self.nph
+        s = self.sin_edges[ie] + (self.sin_edges[ie + 1] - self.sin_edges[ie]) * rng.random(m)
+        ph = _GUIDE_PHI_EDGES[ip] + (_GUIDE_PHI_EDGES[ip + 1] - _GUIDE_PHI_EDGES[ip]) * rng.random(m)
+        ph = np.where(rng.random(m) < 0.5, ph, -ph)
+        up, e1, e2 = _local_frame(x, sun)
+        c = np.sqrt(np.maximum(1.0 - s * s, 0.0))
+        d = (c * np.cos(ph))[:, None] * e1 + (c * np.sin(ph))[:, None] * e2 + s[:, None] * up
+        return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+    def pdf(self, g, x, d, sun):
+        """Density (per sr) of :meth:`sample` for guides g at points x in directions d."""
+        up, e1, e2 = _local_frame(x, sun)
+        s = np.clip(_rowdot(d, up), -1.0, 1.0)
+        ph = np.abs(np.arctan2(_rowdot(d, e2), _rowdot(d, e1)))
+        ie = np.clip(np.searchsorted(self.sin_edges, s, side="right") - 1, 0, self.sin_edges.size - 2)
+        ip = np.clip(np.searchsorted(_GUIDE_PHI_EDGES, ph, side="right") - 1, 0, self.nph - 1)
+        b = ie * self.nph + ip
+        return np.where(self.ok[g], self.prob[g, b] / self.omega[b], 0.0)
+
+
+def _vertex_kernel(med, P, Din, Wl, ev, d):
+    """At vertices (air collisions and ground hits), for directions d: (f, p) with f the
+    kernel per unit weight (air: sum_c sigma_c p_c(Din.d) / sigma_t; ground: albedo
+    max(n.d, 0) / pi) and p the density (per sr) of :func:`_scatter`'s sampling."""
+    f = np.zeros(P.shape[0])
+    p = np.zeros(P.shape[0])
+    ci = np.flatnonzero(ev == _COLLIDE)
+    if ci.size:
+        Pc, wc = P[ci], Wl[ci]
+        comp = med.components_at(np.sqrt(_rowdot(Pc, Pc)) - med.R, wc)
+        sig_sc = comp[:-1]
+        sig_s = sig_sc.sum(axis=0)
+        mu = _rowdot(Din[ci], d[ci])
+        ph = np.concatenate([med.rayleigh_phase(mu, wc)[None], med.aerosol_phase(mu, wc)])
+        f[ci] = (sig_sc * ph).sum(axis=0) / (sig_s + comp[-1])
+        mass = np.concatenate([np.ones((1, ci.size)), med.phase_mass[:, wc]])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p[ci] = np.where(sig_s > 0, (sig_sc * ph / np.where(mass > 0, mass, 1.0)).sum(axis=0) / np.where(sig_s > 0, sig_s, 1.0), 0.0)
+    gi = np.flatnonzero(ev == _GROUND)
+    if gi.size:
+        Pg = P[gi]
+        cos = np.maximum(_rowdot(Pg / np.linalg.norm(Pg, axis=1, keepdims=True), d[gi]), 0.0)
+        f[gi] = med.albedo[Wl[gi]] * cos / np.pi
+        p[gi] = cos / np.pi
+    return f, p
+
+
+def _guided_sum(med, guide, rows, P, Din, D, Wl, ev, beta, beta_pre, sun, rng):
+    """Per unit of the vertex weight before scattering: the next order estimated along two
+    directions combined by the balance heuristic, the path's own D (density p, from
+    :func:`_scatter`) and one from the guide (density g): sum f L / (p + g). Rows whose
+    guide is empty use D alone (beta / beta_pre is then f / p)."""
+    f1, p1 = _vertex_kernel(med, P, Din, Wl, ev, D)
+    gd = guide.ok[rows]
+    g1 = guide.pdf(rows, P, D, sun)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        est = np.where(gd, f1 / np.where(p1 + g1 > 0, p1 + g1, 1.0), beta / np.where(beta_pre > 0, beta_pre, 1.0))
+    val = est * _sunlit_estimate(med, P, D, Wl, sun, rng)
+    gi = np.flatnonzero(gd)
+    if gi.size:
+        D2 = guide.sample(rows[gi], P[gi], sun, rng)
+        f2, p2 = _vertex_kernel(med, P[gi], Din[gi], Wl[gi], ev[gi], D2)
+        g2 = guide.pdf(rows[gi], P[gi], D2, sun)
+        w2 = np.where(f2 > 0.0, f2 / np.where(p2 + g2 > 0, p2 + g2, 1.0), 0.0)
+        nz = np.flatnonzero(w2 > 0.0)
+        if nz.size:
+            val[gi[nz]] += w2[nz] * _sunlit_estimate(med, P[gi[nz]], D2[nz], Wl[gi[nz]], sun, rng)
+    return val
+
+
+def _trace_batch_sunlit(med: _Medium, origin, dirs, w, sun, max_bounces, rng):
+    """:func:`_trace_batch` with the ``"sunlit"`` estimator: each order of scattering is
+    estimated from the vertex before it by :func:`_sunlit_estimate` along the path's next
+    direction (importance-sampled over the sunlit part of that line, exact zero in the
+    shadow) instead of by next-event estimation at the next vertex; the first vertex is a
+    forced collision on view rays that do not end on the ground."""
+    n = dirs.shape[0]
+    contrib = np.zeros(n)
+    R, top_r = med.R, med.R + med.top
+    p = np.broadcast_to(origin, dirs.shape).copy()
+    if float(np.linalg.norm(origin)) > top_r:  # observer in space: move to the entry point
+        t0, t1, _ = atmosphere_segment(p, dirs, R, top_r)
+        alive = t1 > t0
+        p = p + t0[:, None] * dirs
+        p[alive] *= (top_r / np.linalg.norm(p[alive], axis=1))[:, None]
+    else:
+        alive = np.ones(n, dtype=bool)
+    # the distinct view lines (direction, wavelength): densities built once per line
+    _, first, inv = np.unique(np.column_stack([dirs, w]), axis=0, return_index=True, return_inverse=True)
+    inv = inv.ravel()
+    P0, D0, W0 = p[first], dirs[first], w[first]
+    t0, t1, hit0 = atmosphere_segment(P0, D0, R, top_r)
+    live0 = alive[first] & ((t1 > t0) | hit0)  # an observer on the ground looking down: t1 = t0 = 0
+    P0 = P0 + t0[:, None] * D0
+    t_end0 = np.where(live0, t1 - t0, 0.0)
+    idx = np.flatnonzero(live0[inv])
+    if idx.size == 0:
+        return contrib
+    rows = inv[idx]
+    # order 1 along the view lines
+    sun_line = _Line(med, P0, D0, W0, sun, t_end0, "sun", intervals=_VIEW_LINE_INTERVALS)
+    _, f = sun_line.sample(rows, rng)
+    ground0 = _ground_term(med, P0, D0, W0, sun, t_end0, hit0 & live0, sun_line.tau_p, sun_line.blk)
+    contrib[idx] += f + ground0[rows]
+    if max_bounces < 2:
+        return contrib
+    # first vertex: forced collision where the view line ends in space, free flight where on the ground
+    # the direction guide of each view line, from its points nearest the guide altitudes
+    tt = np.linspace(0.0, 1.0, 257)[None, :] * t_end0[:, None]
+    hh = np.linalg.norm(P0[:, None, :] + tt[..., None] * D0[:, None, :], axis=2) - R
+    k = np.argmin(np.abs(hh[:, :, None] - _GUIDE_ALTITUDES_M[None, None, :]), axis=1)  # (lines, K)
+    pts = P0[:, None, :] + np.take_along_axis(tt, k, axis=1)[..., None] * D0[:, None, :]
+    use_guide = _USE_GUIDE and float(sun[2]) < 0.0
+    guide = None
+    if use_guide:  # one guide per view direction (from its first wavelength's line), shared by its wavelengths
+        _, rep, grp = np.unique(D0, axis=0, return_index=True, return_inverse=True)
+        guide = _Guide(med, pts[rep], W0[rep], sun)
+        line_guide = grp.ravel()
+    importance = None
+    if guide is not None and np.all(guide.inscatter > 0.0):
+        # collisions drawn ~ T sigma_t x the sunlit in-scattering at their altitude (the
+        # guide's, log-interpolated between its points); the weight T sigma_t / pdf keeps
+        # them unbiased
+        hk = (np.linalg.norm(pts, axis=2) - R)[rep]  # (groups, K)
+        lj = np.log(np.maximum(guide.inscatter.reshape(hk.shape), 1e-300))
+        o = np.argsort(hk, axis=1)
+        hk, lj = np.take_along_axis(hk, o, axis=1), np.take_along_axis(lj, o, axis=1)
+        lj = lj - lj.max(axis=1, keepdims=True)
+
+        def importance_of(group):
+            def importance(r_, h_):
+                g_ = group[r_]
+                hs, ls = hk[g_], lj[g_]
+                j = np.clip((hs < h_[:, None]).sum(axis=1) - 1, 0, hs.shape[1] - 2)
+                i = np.arange(h_.size)
+                h0, h1 = hs[i, j], hs[i, j + 1]
+                f = np.clip((h_ - h0) / np.where(h1 > h0, h1 - h0, 1.0), 0.0, 1.0)
+                return np.exp(ls[i, j] * (1.0 - f) + ls[i, j + 1] * f)
+            return importance
+        importance = importance_of(line_guide)
+    col_line = _Line(med, P0, D0, W0, sun, t_end0, "collide", importance, intervals=_VIEW_LINE_INTERVALS)
+    n_i = idx.size
+    P = np.empty((n_i, 3))
+    ev = np.full(n_i, _COLLIDE, dtype=np.int8)
+    beta = np.ones(n_i)
+    J = np.zeros(n_i, dtype=int)
+    forced = ~hit0[rows]
+    if np.any(forced):
+        fi = np.flatnonzero(forced)
+        u, b = col_line.sample(rows[fi], rng)
+        P[fi] = P0[rows[fi]] + u[:, None] * D0[rows[fi]]
+        beta[fi] = b
+        r = np.sqrt(_rowdot(P[fi], P[fi]))
+        J[fi] = np.clip(np.searchsorted(med.band_r, r, side="right") - 1, 0, med.n_bands - 1)
+    fl = np.flatnonzero(~forced)
+    if fl.size:
+        r0 = np.sqrt(_rowdot(P0[rows[fl]], P0[rows[fl]]))
+        b0 = np.clip(np.searchsorted(med.band_r, r0, side="right") - 1, 0, med.n_bands - 1)
+        ev[fl], P[fl], J[fl] = _track(med, P0[rows[fl]], D0[rows[fl]], b0, W0[rows[fl]], rng)
+    D = D0[rows].copy()
+    Wl = w[idx]
+    G = line_guide[rows] if guide is not None else rows
+    keep = (ev != _ESCAPE) & (beta > 0.0)
+    idx, P, D, J, Wl, beta, ev, G = idx[keep], P[keep], D[keep], J[keep], Wl[keep], beta[keep], ev[keep], G[keep]
+    for bounce in range(max_bounces - 1):  # vertex bounce + 1 estimates order bounce + 2
+        if idx.size == 0:
+            break
+        Din, beta_pre = D, beta.copy()
+        D = _scatter(med, P, D, Wl, ev, beta, J, rng)
+        if guide is None:
+            contrib[idx] += beta * _sunlit_estimate(med, P, D, Wl, sun, rng)
+        else:
+            contrib[idx] += beta_pre * _guided_sum(med, guide, _Guide.row(G, P, R), P, Din, D, Wl, ev, beta, beta_pre, sun, rng)
+        keep = beta > 0.0
+        if bounce + 1 >= _RR_START:
+            q = np.minimum(1.0, beta)
+            survive = rng.random(beta.size) < q
+            beta = np.where(survive, beta / np.where(q > 0, q, 1.0), 0.0)
+            keep &= survive
+        if bounce + 2 >= max_bounces:
+            break
+        idx, P, D, J, Wl, beta, G = idx[keep], P[keep], D[keep], J[keep], Wl[keep], beta[keep], G[keep]
+        ev, P, J = _track(med, P, D, J, Wl, rng)
+        keep = ev != _ESCAPE
+        idx, P, D, J, Wl, beta, ev, G = idx[keep], P[keep], D[keep], J[keep], Wl[keep], beta[keep], ev[keep], G[keep]
+    return contrib
+
+
 def trace_radiance(profile, directions, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m=0.0,
-                   n_paths=4096, max_bounces=64, seed=0, wavelength_batch=None) -> MCResult:
+                   n_paths=4096, max_bounces=64, seed=0, wavelength_batch=None, estimator="nee") -> MCResult:
     """Monte Carlo estimate of the sky radiance (direct solar disc excluded).
 
     Parameters
@@ -533,6 +1087,17 @@ def trace_radiance(profile, directions, sun_elevation_deg, sun_azimuth_deg, obse
     wavelength_batch : how many wavelengths are traced together in one vectorised batch
         (None: as many as fit ``_MAX_PATHS_PER_BATCH`` paths). Changes only memory use,
         speed and the random streams, not the expectation.
+    estimator : ``"nee"`` (default): next-event estimation toward the sun at every event
+        of a free-flight path (the module docstring). ``"sunlit"``: every order of
+        scattering is estimated from the vertex before it as a line integral along the
+        path's next direction, importance-sampled over the part of that line outside the
+        Earth's geometric shadow (exactly zero inside it) with the exact integrand
+        (transmittance, scattering coefficient and phase function, sun transmittance) over
+        the sampling density; the first vertex is a forced collision on view rays that
+        leave the atmosphere. Same expectation; with the sun well below the horizon (deep
+        twilight) it has far lower variance, because plain paths almost never collide in
+        the thin sunlit air above the shadow. With the sun up it costs more per path
+        (densities at ``_LINE_INTERVALS`` + 1 nodes per lit line).
 
     Returns
     -------
@@ -556,6 +1121,9 @@ def trace_radiance(profile, directions, sun_elevation_deg, sun_azimuth_deg, obse
     h_obs = float(observer_altitude_m)
     if not np.isfinite(h_obs) or h_obs < 0:
         raise SkymodelInputError("observer_altitude_m", observer_altitude_m, "a finite altitude >= 0 m")
+    if estimator not in ESTIMATORS:
+        raise SkymodelInputError("estimator", estimator, "one of: " + ", ".join(ESTIMATORS))
+    trace = _trace_batch if estimator == "nee" else _trace_batch_sunlit
 
     n_wl = profile.n_wavelengths
     if wavelength_batch is None:
@@ -583,7 +1151,7 @@ def trace_radiance(profile, directions, sun_elevation_deg, sun_azimuth_deg, obse
                 # layout: (direction, wavelength, path)
                 D = np.repeat(dirs[d0:d0 + nd], nw * npc, axis=0)
                 Wl = np.tile(np.repeat(np.arange(nw), npc), nd)
-                c[:, :, p0:p0 + npc] = _trace_batch(med, origin, D, Wl, sun, max_bounces, rng).reshape(nd, nw, npc)
+                c[:, :, p0:p0 + npc] = trace(med, origin, D, Wl, sun, max_bounces, rng).reshape(nd, nw, npc)
             radiance[d0:d0 + nd, w0:w0 + nw] = c.mean(axis=2)
             if n_paths > 1:
                 stderr[d0:d0 + nd, w0:w0 + nw] = c.std(axis=2, ddof=1) / np.sqrt(n_paths)
