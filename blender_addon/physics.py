@@ -144,7 +144,9 @@ def resolve(params: SkyParams) -> ResolvedSky:
     quality = scene.check("quality", p.quality)
     # the date (if any) is checked first: a bad day is named before the atmosphere is built
     month = p.month if p.time_utc is None else scene.month_of(p.time_utc)
-    atm = Atmosphere(location=p.location, month=month, latitude=p.latitude_deg, longitude=p.longitude_deg,
+    day = None if p.time_utc is None else scene.day_of_year(p.time_utc)  # the date's ozone, as the CLI's
+    atm = Atmosphere(location=p.location, month=month, day_of_year=day, latitude=p.latitude_deg,
+                     longitude=p.longitude_deg,
                      aerosol=p.aerosol, aod550=p.aod550, turbidity=p.turbidity, stratospheric=p.stratospheric,
                      ozone_du=p.ozone_du, albedo=p.albedo, aerosol_model=p.aerosol_model,
                      site_altitude_m=p.site_altitude_m)

@@ -26,7 +26,7 @@ def test_resolve_validates_through_the_core():
 
 def test_time_places_the_sun_and_sets_the_month():
     sky = physics.resolve(physics.SkyParams(location="zaragoza", month=1, time_utc=(2026, 6, 21, 12, 0)))
-    assert sky.atmosphere.month == 6
+    assert sky.atmosphere.month == 6 and sky.atmosphere.day_of_year == 172  # the date's ozone (#19)
     assert 60 < sky.sun_elevation_deg < 75 and 150 < sky.sun_azimuth_deg < 200
     assert sky.sun_angular_diameter_deg() == pytest.approx(0.524, abs=0.003)  # aphelion
 
