@@ -123,6 +123,14 @@ def test_bad_input_is_refused_before_any_work(tmp_path, capsys):
     assert main(["timelapse", *TINY, "--date", "2026-06-21", "--from", "19:00", "--to", "20:00", "--every", "1h",
                  "--out", str(out)]) == 2
     assert "out=" in capsys.readouterr().err
+    # with --overwrite, the previous sequence's frames go (none stays stale), other files stay
+    (out / "frames.json").write_text('{"frames": [{"exr": "frame_0009.exr", "png": "../escape.png"}]}')
+    (out / "frame_0009.exr").write_bytes(b"old")
+    (out / "notes.txt").write_text("mine")
+    assert main(["timelapse", *TINY, "--date", "2026-06-21", "--from", "19:00", "--to", "19:00", "--every", "1h",
+                 "--overwrite", "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["contact_sheet.png", "frame_0001.exr", "frame_0001.png",
+                                                    "frames.json", "notes.txt"]
 
 
 def test_ctrl_c_leaves_only_finished_frames(tmp_path, monkeypatch):

@@ -140,6 +140,23 @@ def _out_folder(path, overwrite: bool) -> Path:
     return folder
 
 
+def _remove_previous(folder: Path) -> None:
+    """Delete the files a previous sequence's ``frames.json`` lists (frames, previews,
+    contact sheet, video) and that file itself; nothing else in the folder."""
+    index = folder / "frames.json"
+    try:
+        old = json.loads(index.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return
+    names = [old.get("contact_sheet"), old.get("video")]
+    for f in old.get("frames", []) if isinstance(old, dict) else []:
+        names += [f.get("exr"), f.get("png")] if isinstance(f, dict) else []
+    for name in names:
+        if isinstance(name, str) and name and Path(name).name == name:  # plain names inside the folder only
+            (folder / name).unlink(missing_ok=True)
+    index.unlink(missing_ok=True)
+
+
 def _write_json_atomic(path: Path, data: dict) -> None:
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
@@ -289,6 +306,7 @@ def cmd_timelapse(args) -> int:
     observer = scene.check("observer_altitude", args.observer_altitude)
     folder = _out_folder(args.out, args.overwrite)
     cache = SolutionCache(args.solution_cache, keep=2)
+    _remove_previous(folder)  # --overwrite: the previous sequence's files, so no stale frame stays
     prog = _Progress(args.quiet, len(frames))
     prog.line(f"{len(frames)} frames ({kind}) at {base.location or 'custom'} ({base.latitude:g}, {base.longitude:g}); "
               f"{camera.name} {camera.width}x{camera.height}, {wl.size} wavelengths, quality {quality}")
