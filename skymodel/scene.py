@@ -242,8 +242,9 @@ _ALL = [
        choices=("dusk", "dawn"), flag="--crossing"),
     # ---- air
     _P("site_altitude", "m", "height of the ground above sea level: the atmosphere starts there (Rayleigh "
-       "and ozone from the standard atmosphere at that height, aerosols from their ground concentration)",
-       minimum=0.0, maximum=8_000.0, flag="--site-altitude", default_note="the location's (0 without a preset)",
+       "and ozone from the standard atmosphere at that height, aerosols from their ground concentration; "
+       "-430 m: the Dead Sea shore, 9000 m: above Everest's summit)",
+       minimum=-430.0, maximum=9_000.0, flag="--site-altitude", default_note="the location's (0 without a preset)",
        suggested=0.0, soft_maximum=5_000.0),
     _P("aerosol_model", "", "aerosol model: guimera2018 = the paper's (Table 1 mixtures, Jaenicke sizes, "
        "Eq. 12 profile), opac = OPAC mixtures (Hess et al. 1998)", default=tuple(_AEROSOL_MODEL_FILES)[0],

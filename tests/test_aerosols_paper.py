@@ -317,8 +317,14 @@ def test_site_altitude_is_checked_and_explicit_wins():
     from skymodel.errors import SkymodelInputError
 
     with pytest.raises(SkymodelInputError) as e:
-        Atmosphere(location="rural", site_altitude_m=-5.0)
+        Atmosphere(location="rural", site_altitude_m=-500.0)  # below the Dead Sea shore (-430 m)
     assert e.value.parameter == "site_altitude"
+    with pytest.raises(SkymodelInputError):
+        Atmosphere(location="rural", site_altitude_m=9_001.0)
+    # the lowest and the highest ground: Rayleigh depth with the pressure there (USSA76)
+    for z in (-430.0, 8849.0):
+        tau = Atmosphere(location="rural", site_altitude_m=z).optical_profile([550.0]).metadata["rayleigh_optical_depth_550"]
+        assert tau == pytest.approx(_bodhaine_tau(0.55) * _ussa76_pressure_ratio(z), rel=1e-2), z
     assert Atmosphere(location="denver").site_altitude_m == 1609.0
     assert Atmosphere(location="denver", site_altitude_m=0.0).site_altitude_m == 0.0
     assert Atmosphere(location="rural").site_altitude_m == 0.0
