@@ -29,6 +29,7 @@ GRID = ("preview:128x64,preview:512x256,preview:1024x512,final:128x64,final:512x
 STEP_NM = 5.0
 DOC = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "docs", "reliability.md")
 HEADING = "## Memory guard: estimate against the measured peak"
+HEADING_SPECTRAL = "## Memory guard: renders that keep the spectral cube (--spectral)"
 
 CHILD = """
 import sys
@@ -38,11 +39,14 @@ sys.exit(rc)
 """
 
 
-def measure(quality: str, width: int, height: int, step_nm: float, folder: str):
-    """(peak RSS bytes, seconds, exit status) of one ``skymodel render`` in a child process."""
+def measure(quality: str, width: int, height: int, step_nm: float, folder: str, spectral: bool):
+    """(peak RSS bytes, seconds) of one ``skymodel render`` in a child process (with
+    ``spectral``, ``--spectral``: the render that keeps the spectral cube)."""
     out = os.path.join(folder, f"{quality}_{width}x{height}.exr")
     cmd = [sys.executable, "-c", CHILD, "render", "--quality", quality, "--size", f"{width}x{height}",
            "--wavelength-step", f"{step_nm:g}", "--max-memory", "4096", "--quiet", "--out", out]
+    if spectral:
+        cmd += ["--spectral", out[:-4] + ".npz"]
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, usage = os.wait4(proc.pid, 0)
@@ -58,6 +62,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", default=GRID, help="quality:WIDTHxHEIGHT,... (default: %(default)s)")
     ap.add_argument("--step", type=float, default=STEP_NM, help="wavelength step [nm] (default %(default)s)")
+    ap.add_argument("--spectral", action="store_true",
+                    help="renders that keep the spectral cube (--spectral); default: the CLI's colour render")
     ap.add_argument("--write", action="store_true", help="write the table into docs/reliability.md")
     args = ap.parse_args(argv)
 
@@ -72,8 +78,10 @@ def main(argv=None) -> int:
         for case in args.cases.split(","):
             quality, size = case.split(":")
             w, h = (int(v) for v in size.split("x"))
-            est = estimate_render_memory(w, h, wl.size, quality, wavelengths_nm=wl)
-            peak, secs = measure(quality, w, h, args.step, folder)
+            # as skymodel render estimates it: the cube only with --spectral, else 3 values a pixel
+            est = estimate_render_memory(w, h, wl.size, quality, wavelengths_nm=wl,
+                                         image_channels=None if args.spectral else 3)
+            peak, secs = measure(quality, w, h, args.step, folder, args.spectral)
             ratio = est.total / peak
             ratios.append(ratio)
             rows.append(f"| {quality} | {w}x{h} | {wl.size} | {est.gib:.2f} ({est.tables / GIB:.2f} / "
@@ -83,7 +91,8 @@ def main(argv=None) -> int:
     summary = (f"Estimate / peak over {len(ratios)} renders: {min(ratios):.2f} .. {max(ratios):.2f} "
                f"(the guard's target: 0.75 .. 1.25).")
     body = "\n".join([
-        "`skymodel render` (EXR + PNG, rural, sun 25 deg) in a child process per row; the peak is the "
+        f"`skymodel render{' --spectral' if args.spectral else ''}` (EXR + PNG{' + NPZ' if args.spectral else ''}, "
+        "rural, sun 25 deg) in a child process per row; the peak is the "
         "child's `ru_maxrss`; the estimate is `skymodel.render.memory.estimate_render_memory`, which "
         "`render_sky` and `skymodel render` compare with `--max-memory` (GiB, default "
         "4) before any work.", "",
@@ -91,7 +100,7 @@ def main(argv=None) -> int:
         f"`{command_line()}`.", "", *rows, "", summary, ""])
     print(summary)
     if args.write:
-        update_section(DOC, HEADING, body)
+        update_section(DOC, HEADING_SPECTRAL if args.spectral else HEADING, body)
     return 0 if all(0.75 <= r <= 1.25 for r in ratios) else 1
 
 

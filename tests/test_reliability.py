@@ -311,23 +311,31 @@ def test_ci_fails_when_a_whole_module_is_skipped(tmp_path):
 
 
 def test_memory_table_in_the_docs_is_the_current_estimate():
-    """docs/reliability.md's memory table (benchmarks/bench_memory.py) shows what
-    estimate_render_memory gives today, and its measured peaks are within 25 % of it: a
-    change of the constants without a new measurement fails here."""
+    """docs/reliability.md's memory tables (benchmarks/bench_memory.py, the colour render and
+    --spectral) show what estimate_render_memory gives today, and their measured peaks are
+    within 25 % of it: a change of the constants without a new measurement fails here."""
     import os
     import re
 
+    from skymodel.cli.render import REDUCED_BAND_PIXELS
     from skymodel.render.memory import estimate_render_memory
     from skymodel.wavelengths import default_wavelengths
 
     text = open(os.path.join(os.path.dirname(__file__), "..", "docs", "reliability.md"), encoding="utf-8").read()
-    rows = re.findall(r"^\| (\w+) \| (\d+)x(\d+) \| (\d+) \| ([\d.]+) \(.*?\) \| ([\d.]+) \| ([\d.]+) \|", text, re.M)
-    assert len(rows) >= 6
-    for quality, w, h, n_wl, est_gib, peak_gib, _ in rows:
-        wl = default_wavelengths(400.0 / (int(n_wl) - 1))
-        est = estimate_render_memory(int(w), int(h), int(n_wl), quality, wavelengths_nm=wl)
-        assert abs(est.gib - float(est_gib)) <= 0.006, (quality, w, h, est.gib, est_gib)
-        assert 0.75 <= est.gib / float(peak_gib) <= 1.25
+    row = re.compile(r"^\| (\w+) \| (\d+)x(\d+) \| (\d+) \| ([\d.]+) \(.*?\) \| ([\d.]+) \| ([\d.]+) \|", re.M)
+    n = 0
+    for heading, channels, band in (("## Memory guard: estimate against the measured peak", 3, REDUCED_BAND_PIXELS),
+                                    ("## Memory guard: renders that keep the spectral cube", None, None)):
+        start = text.index(heading)
+        end = text.find("\n## ", start + 1)
+        for quality, w, h, n_wl, est_gib, peak_gib, _ in row.findall(text[start:end if end > 0 else None]):
+            wl = default_wavelengths(400.0 / (int(n_wl) - 1))
+            est = estimate_render_memory(int(w), int(h), int(n_wl), quality, wavelengths_nm=wl,
+                                         image_channels=channels, band_pixels=band)
+            assert abs(est.gib - float(est_gib)) <= 0.006, (heading, quality, w, h, est.gib, est_gib)
+            assert 0.75 <= est.gib / float(peak_gib) <= 1.25, (heading, quality, w, h)
+            n += 1
+    assert n >= 8
 
 
 # ---------------------------------------------------------------------------- aerosol names and aliases

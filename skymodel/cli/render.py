@@ -10,6 +10,10 @@ from skymodel.cli.options import (add_atmosphere_arguments, add_option, add_sun_
                                   profile_for_sun, size, sun_from_args)
 
 
+#: Pixels whose spectra the colour render holds at once (render_sky_reduced's band).
+REDUCED_BAND_PIXELS = 1 << 20
+
+
 def add_command(sub) -> None:
     """Register ``skymodel render`` on the CLI's subparsers."""
     p = sub.add_parser("render", help="render a sky image (EXR, PNG preview, spectral NPZ)")
@@ -73,7 +77,7 @@ def cmd_render(args) -> int:
     kept = wl.size if args.spectral else 3
     camera = make_camera(args.camera, width, height, n_wavelengths=kept, max_memory_bytes=limit_gib * 1024**3)
     check_render_memory(camera.width, camera.height, wl.size, settings, limit_gib, wavelengths_nm=wl,
-                        image_channels=kept)
+                        image_channels=kept, band_pixels=None if args.spectral else REDUCED_BAND_PIXELS)
     png = None if args.no_png else (args.png or (str(args.out).rsplit(".", 1)[0] + ".png"))
     # validate every output path before the (long) render, so nothing is half-written
     for key, path, ext in (("out", args.out, ".exr"), ("png", png, ".png"), ("spectral", args.spectral, ".npz")):
@@ -89,8 +93,9 @@ def cmd_render(args) -> int:
         radiance, xyz, info = img.radiance, None, img.info
     else:  # straight to CIE XYZ (the sky-view table for large images): no spectral cube
         xyz, _, info = render_sky_reduced(profile, camera, sun.elevation_deg, xyz_reduction(wl), 3,
-                                          sun.azimuth_deg, args.observer_altitude, settings, band_pixels=1 << 20,
-                                          progress=prog.order, include_sun=not args.no_sun, solutions=False)
+                                          sun.azimuth_deg, args.observer_altitude, settings,
+                                          band_pixels=REDUCED_BAND_PIXELS, progress=prog.order,
+                                          include_sun=not args.no_sun, solutions=False)
         radiance = None
     if not args.quiet:
         print(file=sys.stderr)

@@ -10,12 +10,15 @@ the largest phase, not the sum:
   x-nodes x steps) and the multiple-scattering solve (:data:`SOLVE_BYTES` plus
   :data:`TRANSPORT_COPIES` float64 transport matrices of (table_altitudes x table_mu)^2 x
   solver wavelengths);
-* ``bands``: marching one band of directions, ``min(chunk, directions) x view_steps x
-  n_wl`` float64 values, :data:`BAND_COPIES` of them alive at once
-  (:meth:`skymodel.render.marcher.SkyMarcher._exact`), with the tables kept;
+* ``bands``: marching one band of directions, ``min(chunk, MARCH_PIECE, directions) x
+  view_steps x n_wl`` float64 values, :data:`BAND_COPIES` of them alive at once over the
+  marcher's threads (:meth:`skymodel.render.marcher.SkyMarcher._exact`), with the tables kept;
 * ``image``: the float64 spectral cube ``H x W x n_wl``, :data:`IMAGE_COPIES` of them
   (single, multiple and ground parts, their sum, the image, the writers' conversions), or
-  three of them while the pixels near the sun are marched in bands, with the tables kept.
+  three of them while the pixels near the sun are marched in bands, with the tables kept;
+  :data:`TABLE_IMAGE_COPIES` when the image is resampled from the sky-view table
+  (:mod:`skymodel.render.skyview`, images of ``TABLE_MIN_PIXELS`` pixels or more); a render
+  reduced to colour keeps 3 values a pixel plus the spectra of the band it marches.
 
 The constants were measured, not derived (peak of each phase with ``tracemalloc`` for
 the preview and final presets, then the whole render's peak resident memory):
@@ -50,10 +53,14 @@ SUN_TABLE_BYTES_PER_SAMPLE = 360.0
 SOLVE_BYTES = 0.39 * GIB
 #: float64 transport matrices ((table_altitudes x table_mu)^2 x solver wavelengths) alive at once (measured).
 TRANSPORT_COPIES = 1.6
-#: float64 arrays of one marching band (chunk x view_steps x n_wl) alive at once (measured: 15 preview, 16.5 final).
-BAND_COPIES = 16.0
+#: float64 arrays per marched direction (view_steps x n_wl) alive at once, over the marcher's
+#: threads, for min(chunk, MARCH_PIECE) directions in flight (measured: 26 preview and final,
+#: since the marcher splits its pieces over threads; 15-16.5 before, with 2048 directions in one piece).
+BAND_COPIES = 26.0
 #: float64 spectral cubes (H x W x n_wl) alive at once, render and writers (measured).
 IMAGE_COPIES = 6.0
+#: ... when the image is resampled from the sky-view table (measured: 4.7 final, 4.8 preview at 1024x512).
+TABLE_IMAGE_COPIES = 5.0
 #: The tables kept through the march, in float64 transport matrices (the float32 copy, the field, the
 #: allocator's unreturned pages; measured: the final preset's image phase over the preview's).
 KEPT_TABLES = 1.0
@@ -97,14 +104,33 @@ def _n_solver_wavelengths(n_wavelengths: int, wavelengths_nm, step_nm: float) ->
     return int(solver_wavelengths(np.asarray(wavelengths_nm, dtype=float), step_nm).size)
 
 
+def _march_piece() -> int:
+    """Directions the marcher has in flight at once (over all its threads)."""
+    from skymodel.render import marcher
+
+    return int(getattr(marcher, "MARCH_PIECE", 1 << 30))
+
+
+def _table_min_pixels() -> int:
+    """Images from this many pixels go through the sky-view table (no per-pixel spectra)."""
+    try:
+        from skymodel.render.skyview import TABLE_MIN_PIXELS
+    except ImportError:  # pragma: no cover - a renderer without the table
+        return 1 << 62
+    return int(TABLE_MIN_PIXELS)
+
+
 def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=None, *, wavelengths_nm=None,
-                           n_pixels: int | None = None, image_channels: int | None = None) -> MemoryEstimate:
+                           n_pixels: int | None = None, image_channels: int | None = None,
+                           band_pixels: int | None = None) -> MemoryEstimate:
     """Estimated peak resident memory of rendering ``width x height`` pixels at
     ``n_wavelengths`` wavelengths with ``quality`` (a preset name, a MarchSettings, or
     None for the default quality); ``wavelengths_nm`` (optional) gives the solver's
     wavelength count exactly; ``n_pixels`` the pixels marched (default all);
     ``image_channels`` the values kept per pixel (default ``n_wavelengths``: the spectral
-    cube; 3 for a render reduced to colour band by band)."""
+    cube; 3 for a render reduced to colour band by band, whose pixels marched directly
+    hold the spectra of ``band_pixels`` of them at once, default all; images of at least
+    ``skymodel.render.skyview.TABLE_MIN_PIXELS`` pixels go through the sky-view table)."""
     from skymodel.render.quality import quality_settings
 
     s = quality_settings(quality)
@@ -117,13 +143,22 @@ def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=
     grid_dirs = 0 if s.exact else (s.grid_zenith + s.grid_zenith_ground) * s.grid_azimuth
     kept = KEPT_TABLES * transport + grid_dirs * n_wl * 8 * 3
     per_direction = s.view_steps * n_wl * 8.0  # one float64 band array per marched direction
-    marched = max(min(s.chunk, max(pixels if s.exact else grid_dirs, 1)), 1)
+    marched = max(min(s.chunk, _march_piece(), max(pixels if s.exact else grid_dirs, 1)), 1)
     bands = kept + BAND_COPIES * marched * per_direction
     cube = w * h * (n_wl if image_channels is None else int(image_channels)) * 8.0
     # with a direction grid the pixels near the sun are still marched, in bands, while the
     # three parts of the cube are held (a hemisphere camera: up to 1 - cos(sun_exact) of them)
     near = pixels if s.exact else math.ceil(pixels * (1.0 - math.cos(math.radians(s.sun_exact_deg))))
-    image = kept + max(IMAGE_COPIES * cube, 3 * cube + BAND_COPIES * min(s.chunk, near) * per_direction)
+    near_bands = BAND_COPIES * min(s.chunk, _march_piece(), near) * per_direction
+    table = not s.exact and pixels >= _table_min_pixels()
+    if table:  # resampled from the sky-view table: no pixel is marched
+        image = kept + TABLE_IMAGE_COPIES * cube
+    else:
+        image = kept + max(IMAGE_COPIES * cube, 3 * cube + near_bands)
+    if image_channels is not None and not table:
+        # reduced to colour, marched directly: the spectra of one band (3 parts, then their sum)
+        band = min(pixels, pixels if band_pixels is None else int(band_pixels)) * n_wl * 8.0
+        image = kept + IMAGE_COPIES * cube + max(4 * band, 3 * band + near_bands)
     return MemoryEstimate(int(BASE_BYTES), int(tables), int(bands), int(image))
 
 
@@ -135,12 +170,13 @@ def limit_bytes(max_memory_gib=None) -> float:
 
 
 def check_render_memory(width: int, height: int, n_wavelengths: int, quality=None, max_memory_gib=None, *,
-                        wavelengths_nm=None, image_channels: int | None = None) -> MemoryEstimate:
+                        wavelengths_nm=None, image_channels: int | None = None,
+                        band_pixels: int | None = None) -> MemoryEstimate:
     """The estimate (:func:`estimate_render_memory`), or :class:`SkymodelInputError`
     naming ``max_memory`` when it exceeds ``max_memory_gib`` [GiB] (None: the default)."""
     limit = limit_bytes(max_memory_gib)
     est = estimate_render_memory(width, height, n_wavelengths, quality, wavelengths_nm=wavelengths_nm,
-                                 image_channels=image_channels)
+                                 image_channels=image_channels, band_pixels=band_pixels)
     if est.total > limit:
         gib = limit / GIB
         raise SkymodelInputError(
