@@ -265,12 +265,14 @@ def test_models_differ_and_the_default_is_the_paper():
     assert paper_.single_scattering_albedo[0] != pytest.approx(opac.single_scattering_albedo[0], abs=1e-3)
     assert Atmosphere(location="urban").aerosol_model == "guimera2018"
     assert Atmosphere(location="urban", aerosol_model="opac").optical_profile([550.0]).metadata["aerosol_model"] == "opac"
-    # a type only the OPAC model has is refused by the paper's, naming the parameter
+    # a type only the OPAC model has: refused by the paper's model named explicitly (naming the
+    # parameter); given without a model it selects the OPAC model
     from skymodel.errors import SkymodelInputError
 
     with pytest.raises(SkymodelInputError) as e:
-        Atmosphere(location="urban", aerosol="continental_polluted")
+        Atmosphere(location="urban", aerosol="continental_polluted", aerosol_model="guimera2018")
     assert e.value.parameter == "aerosol" and "guimera2018" in str(e.value)
+    assert Atmosphere(location="urban", aerosol="continental_polluted").aerosol_model == "opac"
     assert Atmosphere(location="urban", aerosol="continental_polluted", aerosol_model="opac").aerosol == \
         "continental_polluted"
 

@@ -361,20 +361,25 @@ def test_every_aerosol_alias_through_atmosphere_and_the_cli(alias, canonical, ca
 
 
 #: Listed by --aerosol (the union of both models' types) but only the opac model has them:
-#: the open finding of docs/reliability.md (#20); strict, so a fix shows up here.
+#: given without a model they select it (Atmosphere(aerosol_model=None)).
 OPAC_ONLY = {"continental_polluted", "maritime_mineral"}
 
 
-@pytest.mark.parametrize("name", [
-    pytest.param(c, marks=pytest.mark.xfail(strict=True, raises=SkymodelInputError,
-                                            reason="listed by --aerosol, only the opac model has it (#20)"))
-    if c in OPAC_ONLY else c for c in scene.parameter("aerosol").choices])
+@pytest.mark.parametrize("name", scene.parameter("aerosol").choices)
 def test_every_listed_aerosol_type_is_accepted_by_default(name):
-    """Every name `--aerosol` lists (its help, the registry's choices) works with the
-    default aerosol model."""
+    """Every name `--aerosol` lists (its help, the registry's choices) works without naming
+    an aerosol model; an opac-only type selects that model and says so; naming the
+    other model explicitly is refused, naming the parameter."""
     from skymodel import Atmosphere
 
-    assert Atmosphere(aerosol=name).aerosol == name
+    atm = Atmosphere(aerosol=name)
+    assert atm.aerosol == name
+    if name in OPAC_ONLY:
+        assert atm.aerosol_model == "opac" and any("aerosol model opac" in r for r in atm.location_rules)
+        with pytest.raises(SkymodelInputError, match="aerosol"):
+            Atmosphere(aerosol=name, aerosol_model="guimera2018")
+    else:
+        assert atm.aerosol_model == scene.default("aerosol_model")
 
 
 # ---------------------------------------------------------------------------- cameras, view angles, tone mapping

@@ -106,7 +106,8 @@ def add_atmosphere_arguments(p: argparse.ArgumentParser) -> None:
     add_option(g, "latitude")
     add_option(g, "longitude")
     add_option(g, "month", default=None, note="with --time, the month of the date")
-    add_option(g, "aerosol_model")
+    add_option(g, "aerosol_model", default=None,
+               note="a type only the opac model has (continental_polluted, maritime_mineral) selects opac")
     add_option(g, "aerosol", note="without --location, chosen from --lat/--lon by the location rule")
     add_option(g, "site_altitude")
     add_option(g, "aod550")
@@ -135,7 +136,7 @@ def atmosphere_from_args(args):
         latitude=args.latitude, longitude=args.longitude, aerosol=args.aerosol,
         aod550=args.aod550, turbidity=args.turbidity, stratospheric=args.stratospheric,
         ozone_du=args.ozone_du, albedo=args.albedo, n_altitudes=args.n_altitudes,
-        aerosol_model=getattr(args, "aerosol_model", scene.default("aerosol_model")),
+        aerosol_model=getattr(args, "aerosol_model", None),
         site_altitude_m=getattr(args, "site_altitude", None),
     )
     for rule in atm.location_rules:  # which rule chose the aerosol type and the surface

@@ -69,8 +69,11 @@ class Atmosphere:
         the latitude).
     albedo : ground albedo 0..1 (default: the location's surface); or ``surface`` name.
     n_altitudes : points of the altitude grid (ground to 100 km above sea level, denser near the ground).
-    aerosol_model : ``"guimera2018"`` (the paper's Table 1 mixtures, the default) or ``"opac"``
-        (:data:`skymodel.optics.aerosols.MODELS`).
+    aerosol_model : ``"guimera2018"`` (the paper's Table 1 mixtures) or ``"opac"``
+        (:data:`skymodel.optics.aerosols.MODELS`). None (the default): the registry's default
+        (the paper's), or ``"opac"`` when the aerosol type is one only that model has
+        (``continental_polluted``, ``maritime_mineral``; the choice is recorded in
+        ``location_rules``, which the CLI prints).
     site_altitude_m : height of the ground above sea level [m]: the atmosphere starts there
         (molecules and ozone of the standard atmosphere above that height, so the Rayleigh depth
         is the sea-level one times p(site)/p0; aerosols at their ground concentration at the site).
@@ -97,7 +100,7 @@ class Atmosphere:
     surface: str | None = scene.default("surface")
     n_altitudes: int = scene.default("n_altitudes")
     co2_ppm: float = rayleigh.DEFAULT_CO2_PPM
-    aerosol_model: str = scene.default("aerosol_model")
+    aerosol_model: str | None = None
     site_altitude_m: float | None = scene.default("site_altitude")  # None: the location's (0 without a preset)
     location_rules: tuple = ()
 
@@ -128,7 +131,8 @@ class Atmosphere:
             if self.albedo is None and self.surface is None:
                 rules.append(f"surface {choice.surface}: {choice.surface_rule}")
             set_("location_rules", tuple(rules))
-        set_("aerosol_model", scene.check("aerosol_model", self.aerosol_model))
+        if self.aerosol_model is not None:
+            set_("aerosol_model", scene.check("aerosol_model", self.aerosol_model))
         site = preset.get("site_altitude_m", 0.0) if self.site_altitude_m is None else self.site_altitude_m
         set_("site_altitude_m", scene.check("site_altitude", site))
         lat = preset.get("latitude") if self.latitude is None else self.latitude
@@ -138,6 +142,11 @@ class Atmosphere:
         aer_from_preset = self.aerosol is None
         aer = self.aerosol if self.aerosol is not None else preset.get("aerosol", "continental")
         set_("aerosol", scene.check("aerosol", aer))  # aliases (desert_dust) give the canonical name
+        if self.aerosol_model is None:
+            set_("aerosol_model", _model_for_type(self.aerosol))
+            if self.aerosol_model != scene.default("aerosol_model"):
+                set_("location_rules", self.location_rules + (
+                    f"aerosol model {self.aerosol_model}: {self.aerosol} is a type of that model only",))
         if self.aerosol != "none":  # the type must exist in the chosen model
             set_("aerosol", aerosols.resolve_type(self.aerosol, "aerosol", model=self.aerosol_model))
         set_("stratospheric", scene.check("stratospheric", self.stratospheric))
@@ -164,6 +173,21 @@ class Atmosphere:
     def optical_profile(self, wavelengths_nm=None) -> OpticalProfile:
         """Per-height optical properties on ``wavelengths_nm`` (default 380–780 nm, 5 nm)."""
         return _build_profile(self, tuple(as_wavelengths(wavelengths_nm).tolist()))
+
+
+def _model_for_type(aerosol: str) -> str:
+    """The aerosol model of a type given without a model: the registry's default model if it
+    has the type (or for ``none``), else the first model that has it."""
+    default = scene.default("aerosol_model")
+    if aerosol == "none":
+        return default
+    for model in (default, *scene.parameter("aerosol_model").choices):
+        try:
+            aerosols.resolve_type(aerosol, "aerosol", model=model)
+            return model
+        except SkymodelInputError:
+            continue
+    return default  # unknown everywhere: the default model's check names the choices
 
 
 @functools.lru_cache(maxsize=32)
