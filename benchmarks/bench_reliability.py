@@ -273,7 +273,10 @@ def run(table, folder):
                             (False, ["radiance", "--view-zenith", ""]), (False, ["radiance", "--view-zenith", "nan"]),
                             (False, ["radiance", "--wavelengths", "550,550"]),
                             (False, ["render", "--max-memory", "0", "--out", out_path()]),
-                            (False, ["render", "--size", "2400x1200", "--wavelength-step", "10", "--out", out_path()])):
+                            # the case: the spectral cube kept (without --spectral the colour
+                            # image is marched through the sky-view table and fits)
+                            (False, ["render", "--size", "2400x1200", "--wavelength-step", "10", "--out", out_path(),
+                                     "--spectral", out_path(".npz")])):
             word = {"compare": "quality", "profile": "layers", "radiance": argv[1].lstrip("-").replace("-", "_"),
                     "render": "max_memory"}[argv[0]]
             cli_case(table, " ".join(argv[:3]), argv, {word}, valid)
