@@ -212,7 +212,9 @@ _ALL = [
        "between mid-month values; with --time, the date's)", minimum=1, maximum=366,
        default_note="the month's mean"),
     _P("timezone", "", "time zone of --time when it has no offset: an IANA name (Europe/Madrid, daylight "
-       "saving applied; data from the tzdata package), UTC, or an offset such as +02:00", flag="--timezone",
+       "saving applied; data from the tzdata package), UTC, an offset such as +02:00, or auto (the zone at "
+       "the latitude/longitude, found offline; needs the optional timezonefinder package; at sea the "
+       "nautical zone Etc/GMT+N)", flag="--timezone",
        default_note="UTC (a --time without an offset is UTC)"),
     _P("year", "", "year of the date (UTC)", default=2026, minimum=_sun.SUPPORTED_YEARS[0],
        maximum=_sun.SUPPORTED_YEARS[1], integer=True),
@@ -418,6 +420,9 @@ def time_zone(name) -> _dt.tzinfo | None:
     text = str(name).strip()
     if not text:
         raise SkymodelInputError("timezone", name, _OFFSET_TEXT)
+    if text.lower() == AUTO_ZONE:
+        raise SkymodelInputError("timezone", name, "an explicit zone here; auto needs the place (latitude and "
+                                                   "longitude, resolved with place_zone)")
     if text.upper() in ("UTC", "Z", "GMT"):
         return _dt.timezone.utc
     offset = text[3:] if text.upper().startswith(("UTC", "GMT")) else text
@@ -437,6 +442,45 @@ def time_zone(name) -> _dt.tzinfo | None:
         return zoneinfo.ZoneInfo(text)
     except (zoneinfo.ZoneInfoNotFoundError, ValueError):
         raise SkymodelInputError("timezone", name, _OFFSET_TEXT + " (not found in the IANA database)") from None
+
+
+AUTO_ZONE = "auto"  #: the ``timezone`` value that means "the zone at the place"
+
+
+def zone_at(latitude_deg, longitude_deg) -> str:
+    """The IANA time zone at a place [deg north, deg east], found offline with the
+    optional ``timezonefinder`` package (its bundled boundary data): ``Europe/Madrid`` for
+    Zaragoza; at sea the nautical zone ``Etc/GMT+N`` (POSIX sign: ``Etc/GMT+2`` is UTC-2).
+    Raises naming ``timezone`` when the package is missing or finds no zone, and naming
+    ``latitude``/``longitude`` for a place out of range."""
+    lat, lon = check("latitude", latitude_deg), check("longitude", longitude_deg)
+    try:
+        from timezonefinder import TimezoneFinder
+    except ImportError:
+        raise SkymodelInputError("timezone", AUTO_ZONE, "an explicit zone (Europe/Madrid, UTC, +02:00): 'auto' "
+                                                        "needs the optional package timezonefinder "
+                                                        "(pip install 'skymodel[timezone]')") from None
+    global _FINDER
+    if _FINDER is None:
+        _FINDER = TimezoneFinder()
+    name = _FINDER.timezone_at(lat=float(lat), lng=float(((lon + 180.0) % 360.0) - 180.0))
+    if not name:
+        raise SkymodelInputError("timezone", AUTO_ZONE, f"an explicit zone: none found at {lat:g}, {lon:g}")
+    return str(name)
+
+
+_FINDER = None
+
+
+def place_zone(timezone, latitude_deg=None, longitude_deg=None):
+    """``timezone`` with ``auto`` replaced by :func:`zone_at` of the place (other values
+    unchanged). Raises naming ``timezone`` for ``auto`` without a latitude and longitude."""
+    if not (isinstance(timezone, str) and timezone.strip().lower() == AUTO_ZONE):
+        return timezone
+    if latitude_deg is None or longitude_deg is None:
+        raise SkymodelInputError("timezone", timezone, "an explicit zone, or auto together with a latitude and "
+                                                       "longitude")
+    return zone_at(latitude_deg, longitude_deg)
 
 
 def _zone_name(tz) -> str:
@@ -478,7 +522,7 @@ def _parse_datetime(value) -> _dt.datetime:
                                                 "offset +02:00 or Z)")
 
 
-def resolve_time(time, timezone=None) -> Instant:
+def resolve_time(time, timezone=None, latitude_deg=None, longitude_deg=None) -> Instant:
     """The instant a date-time names, read in ``timezone``.
 
     Parameters
@@ -487,8 +531,10 @@ def resolve_time(time, timezone=None) -> Instant:
         :class:`datetime.datetime`, numpy ``datetime64`` (naive), or the fields ``(year,
         month, day, hour, minute)``.
     timezone : where a time without an offset is read (:func:`time_zone`: IANA name,
-        ``UTC`` or a fixed offset); None: such a time is UTC. A time with an offset and
+        ``UTC`` or a fixed offset; ``auto``: the zone at ``latitude_deg``/``longitude_deg``,
+        :func:`zone_at`); None: such a time is UTC. A time with an offset and
         a zone must agree (the offset then picks one of the two readings of a repeated hour).
+    latitude_deg, longitude_deg : the place [deg], only used by ``timezone="auto"``.
 
     Raises
     ------
@@ -498,7 +544,7 @@ def resolve_time(time, timezone=None) -> Instant:
         an offset that is not the zone's at that moment, and for years outside the range
         :func:`skymodel.sun.solar_position` supports; naming ``timezone`` for an unknown zone.
     """
-    tz = time_zone(timezone)
+    tz = time_zone(place_zone(timezone, latitude_deg, longitude_deg))
     dt = _parse_datetime(time)
     text = time if isinstance(time, str) else dt.isoformat()
     if dt.tzinfo is not None and dt.utcoffset() is not None:
@@ -546,7 +592,8 @@ def place_sun(latitude_deg=None, longitude_deg=None, time_utc=None, elevation_de
     time_utc : a date-time accepted by :func:`resolve_time` (text with or without an
         offset, datetime, or ``(year, month, day, hour, minute)``), or None to use the angles.
     timezone : the zone a time without an offset is read in (IANA name such as
-        ``Europe/Madrid``, ``UTC``, or ``+02:00``); None: UTC. Daylight saving applies;
+        ``Europe/Madrid``, ``UTC``, ``+02:00``, or ``auto``: the zone at the place,
+        :func:`zone_at`, reported in the result's ``timezone``); None: UTC. Daylight saving applies;
         a skipped or repeated local time is refused (:func:`resolve_time`).
     elevation_deg : sun elevation [deg]; default the registry's ``sun_elevation``.
     azimuth_deg : sun azimuth [deg] clockwise from north; default the registry's
@@ -574,7 +621,7 @@ def place_sun(latitude_deg=None, longitude_deg=None, time_utc=None, elevation_de
         if elevation_deg is not None or azimuth_deg is not None:
             raise SkymodelInputError("time_utc", time_utc,
                                      "either a time or a sun elevation/azimuth, not both")
-        instant = resolve_time(time_utc, timezone)
+        instant = resolve_time(time_utc, timezone, latitude_deg, longitude_deg)
         iso = instant.utc_iso
         pos = _sun.solar_position(latitude_deg, longitude_deg, iso)
         elev = float(np.asarray(pos.elevation_deg))

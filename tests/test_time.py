@@ -90,6 +90,57 @@ def test_cli_sun_with_a_zone_and_no_numpy_warning_for_an_offset(tmp_path):
     assert out.returncode == 2 and "skipped" in out.stderr
 
 
+# ---------------------------------------------------------------------------- --timezone auto
+
+
+def test_auto_zone_from_the_place_offline():
+    pytest.importorskip("timezonefinder")
+    assert scene.zone_at(*ZARAGOZA) == "Europe/Madrid"
+    s = scene.place_sun(*ZARAGOZA, "2026-06-21T21:30", timezone="auto")
+    assert s.timezone == "Europe/Madrid" and s.time_utc == "2026-06-21T19:30:00Z"
+    # at sea: the nautical zone Etc/GMT+N (POSIX sign: Etc/GMT+2 is UTC-2), read like any IANA zone
+    assert scene.zone_at(0.0, -30.0) == "Etc/GMT+2"
+    inst = scene.resolve_time("2026-06-21T12:00", "auto", 0.0, -30.0)
+    assert inst.timezone == "Etc/GMT+2" and inst.utc_iso == "2026-06-21T14:00:00Z"
+
+
+def test_auto_zone_refusals_name_the_parameter(monkeypatch):
+    with pytest.raises(SkymodelInputError, match="timezone.*auto together with a latitude"):
+        scene.resolve_time("2026-06-21T21:30", "auto")
+    with pytest.raises(SkymodelInputError, match="timezone"):
+        scene.place_sun(*ZARAGOZA, "2026-06-21T21:30", timezone="Europe/Zaragoza")
+    with pytest.raises(SkymodelInputError, match="latitude"):
+        scene.zone_at(95.0, 0.0)
+    monkeypatch.setitem(sys.modules, "timezonefinder", None)  # the optional package missing
+    with pytest.raises(SkymodelInputError, match=r"timezone.*skymodel\[timezone\]"):
+        scene.resolve_time("2026-06-21T21:30", "auto", *ZARAGOZA)
+
+
+def test_cli_sun_reports_the_zone_found():
+    pytest.importorskip("timezonefinder")
+    code = ("from skymodel.cli import main; import sys; sys.exit(main(['sun', '--lat', '41.65', '--lon', '-0.88', "
+            "'--time', '2026-06-21T21:30', '--timezone', 'auto']))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert "2026-06-21T19:30:00Z (2026-06-21T21:30:00+02:00 Europe/Madrid)" in out.stdout
+    code = code.replace("'auto'", "'Nowhere/Land'")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 2 and "timezone" in out.stderr
+
+
+def test_cli_options_resolve_auto_from_a_preset_location():
+    pytest.importorskip("timezonefinder")
+    import argparse
+
+    from skymodel.cli.options import atmosphere_from_args
+
+    args = argparse.Namespace(location="zaragoza", latitude=None, longitude=None, month=None, aerosol=None,
+                              aod550=None, turbidity=None, stratospheric=None, ozone_du=None, albedo=None,
+                              n_altitudes=scene.default("n_altitudes"), time_utc="2026-06-21T21:30", timezone="auto")
+    atm = atmosphere_from_args(args)
+    assert args.timezone == "Europe/Madrid" and atm.day_of_year == 172
+
+
 # ---------------------------------------------------------------------------- ozone in the year
 
 

@@ -128,6 +128,13 @@ def atmosphere_from_args(args):
     if location is None and (args.latitude is None or args.longitude is None):
         location = scene.default("location")
     month, day = args.month, None
+    if getattr(args, "timezone", None) is not None:  # auto: the zone at the place, reported by name from here on
+        from skymodel.optics.atmosphere import locations
+
+        preset = locations().get(location, {}) if location is not None else {}
+        lat = args.latitude if args.latitude is not None else preset.get("latitude")
+        lon = args.longitude if args.longitude is not None else preset.get("longitude")
+        args.timezone = scene.place_zone(args.timezone, lat, lon)
     if month is None and getattr(args, "time_utc", None) is not None:
         iso = scene.resolve_time(args.time_utc, getattr(args, "timezone", None)).utc_iso
         month, day = scene.month_of(iso), scene.day_of_year(iso)

@@ -24,7 +24,7 @@ def add_command(sub) -> None:
 def cmd_sun(args) -> int:
     from skymodel import scene, sun
 
-    instant = scene.resolve_time(args.time_utc, args.timezone)
+    instant = scene.resolve_time(args.time_utc, args.timezone, args.latitude, args.longitude)
     pos = sun.solar_position(args.latitude, args.longitude, instant.utc_iso, refraction=args.refraction)
     out = {
         "latitude_deg": args.latitude, "longitude_deg": args.longitude, "time_utc": instant.utc_iso,

@@ -118,6 +118,7 @@ def day_frames(latitude_deg, longitude_deg, date, time_from, time_to, every, tim
     """The frames of one day: ``date`` (ISO text) from ``time_from`` to ``time_to`` (local
     ``HH:MM`` in ``timezone``; None: UTC) every ``every`` (``10min``). ``time_to`` is
     included when the step lands on it. Raises naming the parameter at fault."""
+    timezone = scene.place_zone(timezone, latitude_deg, longitude_deg)
     kind, step = parse_every(every)
     if kind != "seconds":
         raise SkymodelInputError("every", every, "a step in seconds, minutes or hours for a day (--date); "
@@ -194,6 +195,7 @@ def days_frames(latitude_deg, longitude_deg, dates, every, sun_elevation_deg, ti
     crosses ``sun_elevation_deg`` [deg] at dusk or dawn (``which``); local times reported
     in ``timezone``. Raises naming the parameter at fault (``dates`` for a date on which
     the sun does not cross that elevation)."""
+    timezone = scene.place_zone(timezone, latitude_deg, longitude_deg)
     text = str(dates)
     if text.count(":") != 1:
         raise SkymodelInputError("dates", dates, "FIRST:LAST, two ISO dates (2026-01-15:2026-12-15)")
