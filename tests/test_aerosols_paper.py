@@ -332,26 +332,42 @@ def test_site_altitude_is_checked_and_explicit_wins():
     assert Atmosphere(location="rural").site_altitude_m == 0.0
 
 
-# ------------------------------------------------------------------ a known limit (issue 20)
+# ------------------------------------------------------------------ the paper's desert against Monte Carlo
+
+
+def _forward_peak_cut(prof, cutoff_deg):
+    """``prof`` with each aerosol phase function's forward peak inside ``cutoff_deg`` cut
+    away (delta-M: p* = min(p, p(cutoff)) renormalised, aerosol scattering x (1 - f)), for
+    the Monte Carlo reference: light scattered within a few degrees goes on as unscattered."""
+    from dataclasses import replace
+
+    from skymodel.render.medium import truncate_forward_peak
+
+    f, p_star = truncate_forward_peak(prof.aerosol_phase_angles_deg, prof.aerosol_phase, cutoff_deg)
+    return replace(prof, aerosol_phase=p_star,
+                   aerosol_scattering_by_regime=prof.aerosol_scattering_by_regime * (1.0 - f[:, None, :]))
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="known limit: the marcher's multiple scattering is 15-50 % above Monte "
-                   "Carlo for the paper's desert (Jaenicke coarse dust, g 0.94, ssa 0.57) while single "
-                   "scattering agrees; see docs/accuracy.md 'Known limits'. Strict: a fix makes this fail "
-                   "until the marker is removed")
-def test_marcher_vs_monte_carlo_paper_desert_known_limit():
-    # the paper's desert at AOD 0.27 (OPAC's table amount, so only the mixture differs from the
-    # OPAC case of tests/test_marcher.py::test_agrees_with_monte_carlo_real_aerosols), sun 20 deg:
-    # measured +4..+19 % (total), single scattering within MC noise (-4..+6 %)
+@pytest.mark.parametrize("aod550", [0.27, None])  # OPAC's table amount, and the paper's (2.33)
+def test_marcher_vs_monte_carlo_paper_desert(aod550):
+    # The paper's desert (Jaenicke coarse dust: g 0.94, ssa 0.57, p(0) = 1.7e4 /sr at 550 nm,
+    # 86 % of the scattering within 12 deg) has a diffraction peak the Monte Carlo tracer cannot
+    # converge on: with the raw phase function its NEE estimate is heavy-tailed (runs of 1e4..6.4e5
+    # paths scatter from -55 % to +117 % around the value below, with standard errors that
+    # understate it), which issue 20 read as the marcher being 15-50 % high. The reference is
+    # the same tracer on the medium with the peak inside 3 deg cut (delta-M): it converges (se ~1 %)
+    # and agrees with the 12-deg cut within noise away from the sun (docs/accuracy.md, "Known
+    # limits"). Sun 20 deg, the views of test_marcher's MC comparison; the
+    # one 10 deg from the sun is outside the 3-deg cone.
     from skymodel.render.marcher import MarchSettings, SkyMarcher
     from skymodel.render.rays import direction_from_angles
     from skymodel.validation.montecarlo import trace_radiance
 
-    prof = Atmosphere(location="desert", month=6, aod550=0.27).optical_profile((450.0, 650.0))
+    prof = Atmosphere(location="desert", month=6, aod550=aod550).optical_profile((450.0, 650.0))
     views = ((0.0, 0.0), (45.0, 0.0), (45.0, 180.0), (80.0, 0.0), (80.0, 180.0), (88.0, 180.0))
     d = direction_from_angles(np.array([v[0] for v in views]), np.array([180.0 + v[1] for v in views]))
-    mc = trace_radiance(prof, d, 20.0, 180.0, n_paths=4000, seed=31)
+    mc = trace_radiance(_forward_peak_cut(prof, 3.0), d, 20.0, 180.0, n_paths=20000, seed=31)
     r = SkyMarcher(prof, 20.0, 180.0, 0.0, MarchSettings(exact=True)).radiance(d).radiance
     rel = r / mc.radiance - 1.0
-    assert np.all(np.abs(rel) <= 4.0 * mc.stderr / mc.radiance + 0.01), np.round(100 * rel, 1)
+    assert np.all(np.abs(rel) <= 4.0 * mc.stderr / mc.radiance + 0.02), np.round(100 * rel, 1)

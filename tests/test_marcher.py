@@ -165,8 +165,8 @@ def test_agrees_with_monte_carlo_real_aerosols(aerosol, aod, elev):
     from skymodel.validation.montecarlo import trace_radiance
 
     # the OPAC mixtures the figures above were measured with (issue 20 made the paper's model the
-    # default; its desert, g 0.94, is a known limit: tests/test_aerosols_paper.py
-    # ::test_marcher_vs_monte_carlo_paper_desert_known_limit)
+    # default; its desert, g 0.94, needs a reference with the diffraction peak cut:
+    # tests/test_aerosols_paper.py::test_marcher_vs_monte_carlo_paper_desert)
     prof = Atmosphere(location=aerosol, month=6, aod550=aod, aerosol_model="opac").optical_profile((450.0, 650.0))
     d = dirs([v[0] for v in REAL_VIEWS], [180.0 + v[1] for v in REAL_VIEWS])
     mc = trace_radiance(prof, d, elev, 180.0, n_paths=60_000 if elev < 0 else 4000, seed=31)
