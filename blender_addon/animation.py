@@ -14,7 +14,13 @@ What is built and why
     keyframed time never renders a sky of another frame. No frame-change handler
     re-renders while scrubbing: a preview image per frame costs about a second, too slow
     for scrubbing, and a handler would not run where the add-on is not installed anyway.
-    What changes after a bake is found by :func:`stale_frames` (the panel's check).
+    What changes after a bake is found by :func:`stale_frames` (every frame, exact) and,
+    cheaply enough for the panel, by :func:`bake_warning` (the keyframes against those
+    baked, the frame range, and the current frame's sun and date); an F12 or animation
+    render prints a one-line warning (:func:`render_frame_warning`, a ``render_pre``
+    handler) for a frame whose settings differ from what was baked, or an animated sky
+    never baked. It warns rather than refuses: an exception in a render handler does not
+    stop Blender's render.
 
     **Animate Day** keyframes a day in *local* time: the frames from ``time_from`` to
     ``time_to`` every ``every`` on ``date`` in ``timezone`` (IANA name, DST applied; the
@@ -102,6 +108,81 @@ def stale_frames(scene, settings=None) -> list[int]:
     frames = [int(f) for f in data["frames"]]
     now = frame_skies(scene, settings, frames)
     return [f for f, sky in now if sky_signature(sky) != data["frames"][str(f)]["signature"]]
+
+
+def keys_fingerprint(world) -> list:
+    """The world's keyframes of the add-on's settings (``skymodel.*`` f-curves), as
+    ``[[data_path, index, [[frame, value, interpolation], ...]], ...]`` sorted: what a bake
+    followed. ``[]`` when no setting is animated."""
+    if world is None:
+        return []
+    out = [[fc.data_path, int(fc.array_index),
+            [[round(float(kp.co[0]), 4), round(float(kp.co[1]), 6), kp.interpolation] for kp in fc.keyframe_points]]
+           for fc in _fcurves(world) if fc.data_path.startswith("skymodel.")]
+    return sorted(out, key=lambda c: (c[0], c[1]))
+
+
+def _frame_signature(scene, settings=None):
+    """The current frame's sky signature (settings as evaluated now); None when they do not resolve."""
+    settings = settings or scene.world.skymodel
+    try:
+        return sky_signature(physics.resolve(settings.to_params()))
+    except SkymodelInputError:
+        return None
+
+
+def render_frame_warning(scene) -> str | None:
+    """One line when the frame about to render would show a sky that is not its own: the
+    frame's settings (as evaluated now) differ from what was baked for it, the frame is
+    outside the bake, or the sky's settings are keyframed and nothing is baked. None when
+    the frame matches (or nothing is animated nor baked)."""
+    world = scene.world
+    if world is None or not hasattr(world, "skymodel"):
+        return None
+    data = bake_record(scene)
+    f = scene.frame_current
+    if not data:
+        if keys_fingerprint(world):
+            return (f"skymodel: WARNING frame {f}: the sky's settings are keyframed but Bake Time of Day was not run; "
+                    "this frame renders the last built sky, not its own")
+        return None
+    baked = data["frames"].get(str(f))
+    if baked is None:
+        return (f"skymodel: WARNING frame {f} is outside the baked frames "
+                f"{min(map(int, data['frames']))}..{max(map(int, data['frames']))}; it renders another frame's sky")
+    now = _frame_signature(scene)
+    if now != baked["signature"]:
+        return (f"skymodel: WARNING frame {f} renders the sky baked for {baked['signature']} but its settings now give "
+                f"{now} (sun elevation, azimuth [deg], UTC); run Bake Time of Day again")
+    return None
+
+
+_PANEL_MEMO: dict = {}
+
+
+def bake_warning(scene) -> str | None:
+    """The panel's warning (cheap: no frame is changed): keyframes changed since the bake,
+    frames outside it, the current frame's sun/date differing from its baked image, or
+    keyframed settings never baked. None when none applies."""
+    world = scene.world
+    if world is None or not hasattr(world, "skymodel"):
+        return None
+    data = bake_record(scene)
+    keys = keys_fingerprint(world)
+    if not data:
+        return "Animated but not baked: renders show one sky" if keys else None
+    if "keys" in data and json.loads(json.dumps(keys)) != data["keys"]:
+        return "Bake is stale: keyframes changed; bake again"
+    baked = [int(f) for f in data["frames"]]
+    if scene.frame_start < min(baked) or scene.frame_end > max(baked):
+        return f"Frames outside the bake ({min(baked)}..{max(baked)}); bake again"
+    memo_key = (scene.name, scene.frame_current, repr(world.skymodel.to_params()), data.get("build"))
+    if memo_key not in _PANEL_MEMO:
+        _PANEL_MEMO.clear()
+        _PANEL_MEMO[memo_key] = render_frame_warning(scene)
+    if _PANEL_MEMO[memo_key]:
+        return f"Frame {scene.frame_current} differs from its bake; bake again"
+    return None
 
 
 def bake_record(scene) -> dict | None:
@@ -295,6 +376,7 @@ def apply_bake(scene, world, settings, frames: list, folder: Path, skies: list) 
                                         "sun_strength": float(res.sun_strength)}
         scene.view_settings.exposure = old_exposure  # what the build records as the value before it
         record["build"] = tx.build_id
+        record["keys"] = keys_fingerprint(world)  # what bake_warning compares
         tx.set_key(scene, BAKE_KEY, json.dumps(record))
         first.info["image_storage"] = "sequence"
 
@@ -457,21 +539,42 @@ def draw_panel(layout, context):
     col.operator(SKYMODEL_OT_animate_day.bl_idname, icon="TIME")
     col.operator(SKYMODEL_OT_bake_time.bl_idname, icon="RENDER_ANIMATION")
     data = bake_record(context.scene) if context.scene else None
-    if data:
+    warning = bake_warning(context.scene) if context.scene else None
+    if warning:
+        col.label(text=warning, icon="ERROR")
+    elif data:
         col.label(text=f"Baked: {len(data['frames'])} frames", icon="CHECKMARK")
 
 
 CLASSES = (SKYMODEL_OT_bake_time, SKYMODEL_OT_animate_day)
 
 
+@bpy.app.handlers.persistent
+def _render_pre(scene, *_args):
+    """F12 / ``-a``: one line on stderr when the frame's sky is not its own (never raises)."""
+    import sys
+
+    try:
+        line = render_frame_warning(scene)
+    except Exception as ex:  # a render must not fail because of this check
+        line = f"skymodel: WARNING frame {scene.frame_current}: could not check the baked sky ({ex})"
+    if line:
+        print(line, file=sys.stderr)
+
+
 def register():
     for c in CLASSES:
         bpy.utils.register_class(c)
+    if _render_pre not in bpy.app.handlers.render_pre:
+        bpy.app.handlers.render_pre.append(_render_pre)
 
 
 def unregister():
+    while _render_pre in bpy.app.handlers.render_pre:
+        bpy.app.handlers.render_pre.remove(_render_pre)
     for c in reversed(CLASSES):
         bpy.utils.unregister_class(c)
 
 
-__all__ = ["bake", "animate_day", "stale_frames", "remove_bake", "frame_skies", "BakeCancelled"]
+__all__ = ["bake", "animate_day", "stale_frames", "bake_warning", "render_frame_warning", "keys_fingerprint",
+           "remove_bake", "frame_skies", "BakeCancelled"]

@@ -66,9 +66,14 @@ def test_animate_day_keyframes_local_times_as_utc(day):
     sc.frame_set(2)
     assert (s.year, s.month, s.day, s.hour, s.minute) == (2026, 6, 21, 18, 45)  # 20:45 CEST
     sc.frame_set(1)
+    # keyframed but never baked: the panel and a render say so
+    from blender_addon import animation
+
+    assert animation.bake_warning(sc) == "Animated but not baked: renders show one sky"
+    assert "Bake Time of Day was not run" in animation.render_frame_warning(sc)
 
 
-def test_baked_day_follows_the_frame_and_matches_the_core(day, tmp_path):
+def test_baked_day_follows_the_frame_and_matches_the_core(day, tmp_path, capsys):
     from blender_addon import animation, physics
     from skymodel.render import environment
 
@@ -111,10 +116,29 @@ def test_baked_day_follows_the_frame_and_matches_the_core(day, tmp_path):
         assert abs(ratio - 1.0) < 0.05, (k, ratio)
     assert (renders[3][:8] @ LUMA).mean() < 0.5 * (renders[1][:8] @ LUMA).mean()
     assert animation.stale_frames(sc) == []
+    assert animation.bake_warning(sc) is None and animation.render_frame_warning(sc) is None
     sc.frame_set(2)
     s.minute = 50
     s.keyframe_insert("minute", frame=2)
     assert animation.stale_frames(sc) == [2]
+    # the panel sees the changed keyframes; an F12 render of frame 2 warns in one line, frame 1 does not
+    assert animation.bake_warning(sc) == "Bake is stale: keyframes changed; bake again"
+    capsys.readouterr()
+    _render(sc, 2)
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("skymodel: WARNING")]
+    assert len(err) == 1 and "frame 2 renders the sky baked for" in err[0] and "18:50:00Z" in err[0], err
+    _render(sc, 1)
+    assert "skymodel: WARNING" not in capsys.readouterr().err
+    # a setting changed without a keyframe (the place): the current frame no longer matches its image
+    sc.frame_set(2)
+    s.minute = 45
+    s.keyframe_insert("minute", frame=2)  # the keyframes as baked again (18:45 UTC)
+    sc.frame_set(1)
+    assert animation.bake_warning(sc) is None
+    s.location = "rural"
+    assert animation.bake_warning(sc) == "Frame 1 differs from its bake; bake again"
+    sc.frame_end = 5
+    assert animation.bake_warning(sc).startswith("Frames outside the bake (1..3)")
 
 
 def _render(sc, frame):
