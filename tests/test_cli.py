@@ -37,6 +37,25 @@ def test_profile_layers(capsys):
     assert phase.shape[0] == 6 and phase.shape[2] == 1
 
 
+def test_profile_answers_wavelengths_in_the_users_order(capsys):
+    """Wavelengths in any order are computed on the ascending grid and answered in the order
+    given (every per-wavelength array, the layers' too); a duplicate is refused naming them."""
+    args = ("profile", "--location", "urban", "--month", "6", "--layers", "3", "--json")
+    code, out, _ = run(capsys, *args, "--wavelengths", "700,400,550")
+    assert code == 0
+    mixed = json.loads(out)
+    code, out, _ = run(capsys, *args, "--wavelengths", "400,550,700")
+    ordered = json.loads(out)
+    order = [2, 0, 1]  # 700, 400, 550 in the ascending list
+    assert mixed["wavelengths_nm"] == [700.0, 400.0, 550.0]
+    for key in ("rayleigh_optical_depth", "ozone_optical_depth", "aerosol_optical_depth"):
+        assert mixed[key] == [ordered[key][i] for i in order]
+        assert [row for row in mixed["layers"][key]] == [[r[i] for i in order] for r in ordered["layers"][key]]
+    assert mixed["layers"]["edges_m"] == ordered["layers"]["edges_m"]
+    code, _, err = run(capsys, "profile", "--wavelengths", "550,550")
+    assert code == 2 and "wavelengths" in err
+
+
 def test_sun_json_matches_the_module(capsys):
     from skymodel import sun
 

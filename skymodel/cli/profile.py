@@ -8,14 +8,16 @@ import sys
 import numpy as np
 
 from skymodel import scene
-from skymodel.cli.options import add_atmosphere_arguments, add_option, atmosphere_from_args, floats
+from skymodel.cli.options import add_atmosphere_arguments, add_option, atmosphere_from_args, number_list
 
 
 def add_command(sub) -> None:
     """Register ``skymodel profile`` on the CLI's subparsers."""
     p = sub.add_parser("profile", help="per-wavelength optical depths of an atmosphere")
     add_atmosphere_arguments(p)
-    p.add_argument("--wavelengths", type=floats, default=None, help="comma-separated nm (default 380..780 by 5)")
+    p.add_argument("--wavelengths", default=None,
+                   help="comma-separated nm, in any order (answered in that order; no duplicates; "
+                        "default 380..780 by 5)")
     add_option(p, "layers", note="also print N piecewise-constant layers")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_profile)
@@ -87,11 +89,31 @@ def _print_profile_table(s: dict) -> None:
         print("layers (edges in km):", ", ".join(f"{e / 1000:.2f}" for e in s["layers"]["edges_m"]))
 
 
+def _in_order(summary: dict, back) -> dict:
+    """The per-wavelength arrays of :func:`profile_summary` put in the order ``back``
+    (the wavelengths' last axis everywhere)."""
+    n = len(summary["wavelengths_nm"])
+
+    def reorder(v):
+        a = np.asarray(v)
+        return a[..., back].tolist() if a.ndim and a.shape[-1] == n else v
+
+    out = {k: (reorder(v) if isinstance(v, list) else v) for k, v in summary.items()}
+    if "layers" in out:
+        out["layers"] = {k: (v if k in ("edges_m", "aerosol_phase_angles_deg") or not isinstance(v, list)
+                             else reorder(v)) for k, v in out["layers"].items()}
+    return out
+
+
 def cmd_profile(args) -> int:
+    from skymodel.wavelengths import ascending_order
+
     layers = scene.check("layers", args.layers)
+    user_wl = None if args.wavelengths is None else number_list("wavelengths", args.wavelengths)
+    wl, back = ascending_order(user_wl)  # computed on an ascending grid, answered in the user's order
     atm = atmosphere_from_args(args)
-    prof = atm.optical_profile(args.wavelengths)
-    s = profile_summary(prof, layers)
+    prof = atm.optical_profile(wl)
+    s = _in_order(profile_summary(prof, layers), back)
     if args.json:
         json.dump(s, sys.stdout, indent=1)
         print()
