@@ -178,6 +178,11 @@ class Camera:
         hold a unit vector too, but should be rendered black and ignored)."""
         raise NotImplementedError
 
+    def valid_mask(self):
+        """The ``valid`` mask of :meth:`directions` (H, W) without the directions (what the
+        writers need: a 4096x2048 panorama's directions are 0.2 GiB)."""
+        return self.directions()[1]
+
     def pixel_solid_angles(self):
         """Solid angle (sr) represented by each pixel, (H, W); 0 where masked."""
         raise NotImplementedError
@@ -211,6 +216,9 @@ class _PanoramaCamera(Camera):
         az = self._column_azimuths()
         d = direction_from_angles(zen[:, None], az[None, :])
         return d, np.ones(self.shape, dtype=bool)
+
+    def valid_mask(self):
+        return np.ones(self.shape, dtype=bool)
 
 
 class EquirectangularCamera(_PanoramaCamera):
@@ -334,6 +342,9 @@ class FisheyeCamera(Camera):
     def directions(self):
         dx, dy = self._offsets()
         return self._dirs_from_offsets(dx, dy), self._valid_from_offsets(dx, dy)
+
+    def valid_mask(self):
+        return self._valid_from_offsets(*self._offsets())
 
     def _jacobian(self, r):
         """Solid angle per unit image area (sr / px^2) at radius r (px)."""

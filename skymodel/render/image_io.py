@@ -156,7 +156,10 @@ def _attr(name, type_name, payload):
 
 
 def _exr_channels_and_data(rgb_or_channels, channels):
-    """Normalise the input to (sorted names, float array (H, C, W) in that order)."""
+    """Normalise the input to (sorted names, [(H, W) planes in that order], common dtype).
+
+    The planes are views of the caller's arrays (no copy); the common dtype is what
+    stacking them would give, so every plane is converted as if stacked first."""
     if isinstance(rgb_or_channels, Mapping):
         names = [str(k) for k in rgb_or_channels]
         planes = []
@@ -169,7 +172,8 @@ def _exr_channels_and_data(rgb_or_channels, channels):
             raise SkymodelInputError("rgb_or_channels", "{}", "at least one channel")
         if len({p.shape for p in planes}) != 1:
             raise SkymodelInputError("rgb_or_channels", [p.shape for p in planes], "planes of one shape")
-        data = np.stack(planes, axis=-1)
+        dtype = np.result_type(*planes)
+        shape = planes[0].shape + (len(planes),)
     else:
         data = np.asarray(rgb_or_channels)
         if isinstance(channels, str):
@@ -181,18 +185,65 @@ def _exr_channels_and_data(rgb_or_channels, channels):
             raise SkymodelInputError(
                 "rgb_or_channels", f"array of shape {data.shape}",
                 f"an (H, W, {len(names)}) array matching channels={tuple(names)}")
-    if data.dtype.kind not in "fiu" or data.dtype == np.bool_:
-        raise SkymodelInputError("rgb_or_channels", f"dtype {data.dtype}", "real numbers")
-    if data.shape[0] == 0 or data.shape[1] == 0:
-        raise SkymodelInputError("rgb_or_channels", f"array of shape {data.shape}", "at least one pixel")
+        planes = [data[:, :, i] for i in range(data.shape[2])]
+        dtype, shape = data.dtype, data.shape
+    if dtype.kind not in "fiu" or dtype == np.bool_:
+        raise SkymodelInputError("rgb_or_channels", f"dtype {dtype}", "real numbers")
+    if shape[0] == 0 or shape[1] == 0:
+        raise SkymodelInputError("rgb_or_channels", f"array of shape {shape}", "at least one pixel")
     for n in names:
         if not n or len(n.encode("utf-8", "replace")) > 31 or not n.isascii() or not n.isprintable():
             raise SkymodelInputError("channels", n, "names of 1..31 printable ASCII characters")
     if len(set(names)) != len(names):
         raise SkymodelInputError("channels", tuple(names), "distinct channel names")
     order = sorted(range(len(names)), key=lambda i: names[i].encode("ascii"))
-    data = np.transpose(data[:, :, order], (0, 2, 1))
-    return [names[i] for i in order], data
+    return [names[i] for i in order], [planes[i] for i in order], dtype
+
+
+#: Values (pixels x channels) the writers convert at once: they work through an image by
+#: bands of rows, so what they add to a render's peak memory does not grow with the image
+#: beyond one float32 (or half) copy for the EXR, the luminance and the 8-bit PNG rows.
+BAND_VALUES = 1 << 19
+
+
+def _row_bands(height, values_per_row):
+    """``range`` starts and the band height: rows in bands of about :data:`BAND_VALUES` values."""
+    rows = max(1, BAND_VALUES // max(int(values_per_row), 1))
+    return range(0, int(height), rows), rows
+
+
+def _plane_rows(plane, dtype, r0, r1):
+    """Rows ``r0:r1`` of ``plane`` in ``dtype`` (a view when it already has it)."""
+    part = plane[r0:r1]
+    return part if part.dtype == dtype else part.astype(dtype)
+
+
+class _ExrValueCheck:
+    """The EXR's value checks, accumulated over bands of rows: every value finite, and
+    within +-65504 for half floats or the float32 range for float64 input."""
+
+    def __init__(self, dtype, half):
+        self.dtype, self.half = np.dtype(dtype), bool(half)
+        self.nonfinite = 0
+        self.max_abs = 0.0
+
+    def add(self, block):
+        fin = np.isfinite(block)
+        if not fin.all():
+            self.nonfinite += int((~fin).sum())
+        elif block.size and self.nonfinite == 0:
+            self.max_abs = max(self.max_abs, float(np.abs(block).max()))
+
+    def raise_if_bad(self):
+        if self.nonfinite:
+            raise SkymodelInputError("rgb_or_channels", f"{self.nonfinite} non-finite values", "finite pixel values")
+        if self.half:
+            if self.max_abs > _HALF_MAX:
+                raise SkymodelInputError(
+                    "half", True, f"values within +-{_HALF_MAX:g} for half floats (max |value| is "
+                    f"{self.max_abs:.4g}); scale the image or write float32")
+        elif self.dtype.kind == "f" and self.dtype.itemsize > 4 and self.max_abs > np.finfo(np.float32).max:
+            raise SkymodelInputError("rgb_or_channels", self.max_abs, "values within the float32 range")
 
 
 def _zip_pack(raw: bytes, level: int) -> bytes:
@@ -206,12 +257,12 @@ def _zip_pack(raw: bytes, level: int) -> bytes:
     return packed if len(packed) < len(raw) else raw
 
 
-def _exr_bytes_writer(names, data, half, compression, chromaticities, attributes, zip_level):
-    H, C, W = data.shape
+def _exr_bytes_writer(names, planes, dtype, half, compression, chromaticities, attributes, zip_level):
+    H, W = planes[0].shape
+    C = len(planes)
     code, lines = _EXR_COMPRESSION[compression]
     pixel_type = 1 if half else 2
-    arr = data.astype("<f2" if half else "<f4", copy=False)
-    arr = np.ascontiguousarray(arr)
+    file_dtype = np.dtype("<f2" if half else "<f4")
 
     chlist = b"".join(n.encode("ascii") + b"\0" + struct.pack("<iB3xii", pixel_type, 0, 1, 1) for n in names) + b"\0"
     box = struct.pack("<iiii", 0, 0, W - 1, H - 1)
@@ -241,7 +292,11 @@ def _exr_bytes_writer(names, data, half, compression, chromaticities, attributes
         pos = table_pos + 8 * n_chunks
         for k in range(n_chunks):
             y0 = k * lines
-            raw = arr[y0:y0 + lines].tobytes()  # per line: channels (sorted), each W values
+            y1 = min(y0 + lines, H)
+            block = np.empty((y1 - y0, C, W), dtype=file_dtype)  # per line: channels (sorted), each W values
+            for i, plane in enumerate(planes):
+                block[:, i, :] = _plane_rows(plane, dtype, y0, y1)  # the cast of the whole image, by lines
+            raw = block.tobytes()
             payload = raw if code == 0 else _zip_pack(raw, zip_level)
             f.write(struct.pack("<ii", y0, len(payload)))
             f.write(payload)
@@ -257,23 +312,16 @@ def _exr_bytes_writer(names, data, half, compression, chromaticities, attributes
 def _prepare_exr(path, rgb_or_channels, channels, half, compression, chromaticities, attributes, zip_level,
                  parameter="path"):
     p = _check_output_path(parameter, path, (".exr",))
-    names, data = _exr_channels_and_data(rgb_or_channels, channels)
+    names, planes, dtype = _exr_channels_and_data(rgb_or_channels, channels)
     comp = str(compression).lower()
     if comp not in _EXR_COMPRESSION:
         raise SkymodelInputError("compression", compression, "one of: " + ", ".join(_EXR_COMPRESSION))
-    fin = np.isfinite(data)
-    if not fin.all():
-        raise SkymodelInputError("rgb_or_channels", f"{int((~fin).sum())} non-finite values", "finite pixel values")
-    if half:
-        big = np.abs(data) > _HALF_MAX
-        if big.any():
-            raise SkymodelInputError(
-                "half", True, f"values within +-{_HALF_MAX:g} for half floats (max |value| is "
-                f"{float(np.abs(data).max()):.4g}); scale the image or write float32")
-    elif data.dtype.kind == "f" and data.dtype.itemsize > 4:
-        big = np.abs(data) > np.finfo(np.float32).max
-        if big.any():
-            raise SkymodelInputError("rgb_or_channels", float(np.abs(data).max()), "values within the float32 range")
+    check = _ExrValueCheck(dtype, half)
+    starts, rows = _row_bands(planes[0].shape[0], planes[0].shape[1])
+    for plane in planes:
+        for r0 in starts:
+            check.add(_plane_rows(plane, dtype, r0, r0 + rows))
+    check.raise_if_bad()
     if chromaticities is not None:
         try:
             chroma = tuple(tuple(float(v) for v in xy) for xy in chromaticities)
@@ -294,7 +342,7 @@ def _prepare_exr(path, rgb_or_channels, channels, half, compression, chromaticit
         level = -2
     if not 0 <= level <= 9:
         raise SkymodelInputError("zip_level", zip_level, "an integer 0..9")
-    return p, _exr_bytes_writer(names, data, bool(half), comp, chromaticities, attrs, level)
+    return p, _exr_bytes_writer(names, planes, dtype, bool(half), comp, chromaticities, attrs, level)
 
 
 def write_exr(path, rgb_or_channels, channels=("R", "G", "B"), half=False, *, compression="zip",
@@ -359,7 +407,7 @@ def _prepare_png(path, rgb8, text, parameter="path"):
         rows = np.empty((H, 1 + W * C), dtype=np.uint8)
         rows[:, 0] = 0  # filter type None
         rows[:, 1:] = a.reshape(H, W * C)
-        f.write(_png_chunk(b"IDAT", zlib.compress(rows.tobytes(), 6)))
+        f.write(_png_chunk(b"IDAT", zlib.compress(memoryview(rows), 6)))
         f.write(_png_chunk(b"IEND", b""))
 
     return p, write
@@ -408,19 +456,42 @@ def auto_exposure_luminance(rgb_linear, valid=None):
     log-average exp(mean(log Y)) over valid pixels, with Y floored at 1e-3 x the median
     of the positive Y (so black ground or the night side do not drag it to 0). 1.0 for
     an image with no positive luminance."""
-    Y = luminance_rec709(rgb_linear)
+    return _log_average(luminance_rec709(rgb_linear), valid)
+
+
+def _log_average(Y, valid=None):
+    """:func:`auto_exposure_luminance` of the luminance ``Y`` itself (``Y`` is not changed)."""
     if valid is not None:
-        Y = Y[np.asarray(valid, dtype=bool)]
-    Y = Y[np.isfinite(Y)]
+        v = np.asarray(valid, dtype=bool)
+        Y = Y[v] if not v.all() else Y.ravel()
+    fin = np.isfinite(Y)
+    if not fin.all():
+        Y = Y[fin]
+    del fin
     pos = Y[Y > 0]
     if pos.size == 0:
         return 1.0
-    floor = 1e-3 * float(np.median(pos))
-    return float(np.exp(np.mean(np.log(np.maximum(Y, floor)))))
+    floor = 1e-3 * float(np.median(pos, overwrite_input=True))
+    del pos
+    t = np.maximum(Y, floor)
+    np.log(t, out=t)
+    return float(np.exp(np.mean(t)))
 
 
-def tonemap(rgb_linear, exposure_ev=None, *, valid=None, average_luminance=None, key=0.18, white=8.0,
-            return_float=False):
+def _all_finite(a):
+    """Whether every value of ``a`` (H, ...) is finite, checked by bands of rows."""
+    if a.ndim == 0 or a.shape[0] == 0:
+        return bool(np.all(np.isfinite(a)))
+    starts, rows = _row_bands(a.shape[0], a.size // a.shape[0])
+    return all(bool(np.isfinite(a[r0:r0 + rows]).all()) for r0 in starts)
+
+
+#: :func:`tonemap`'s default key (middle grey) and white (in key-scaled units).
+TONEMAP_KEY, TONEMAP_WHITE = 0.18, 8.0
+
+
+def tonemap(rgb_linear, exposure_ev=None, *, valid=None, average_luminance=None, key=TONEMAP_KEY,
+            white=TONEMAP_WHITE, return_float=False):
     """Scene-linear Rec.709 (..., 3) -> 8-bit sRGB (..., 3) uint8 for previews.
 
     Exposure: the image is scaled by ``key / average_luminance * 2**exposure_ev``.
@@ -439,6 +510,8 @@ def tonemap(rgb_linear, exposure_ev=None, *, valid=None, average_luminance=None,
     OETF (IEC 61966-2-1) and rounding to 8 bits. Pixels where ``valid`` is False are
     black. Every channel is non-decreasing in ``exposure_ev`` and 0 maps to 0.
     ``return_float``: return the encoded values in [0, 1] instead of uint8.
+    An image (3-D or more) is mapped in bands of rows, so the float64 temporaries of the
+    curve stay small whatever the image size.
     """
     rgb = np.asarray(rgb_linear, dtype=float)
     if rgb.ndim < 1 or rgb.shape[-1] != 3:
@@ -446,18 +519,41 @@ def tonemap(rgb_linear, exposure_ev=None, *, valid=None, average_luminance=None,
     mask = np.ones(rgb.shape[:-1], dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
     if mask.shape != rgb.shape[:-1]:
         raise SkymodelInputError("valid", f"mask of shape {mask.shape}", f"a mask of shape {rgb.shape[:-1]}")
-    bad = mask & ~np.all(np.isfinite(rgb), axis=-1)
-    if bad.any():
-        raise SkymodelInputError("rgb_linear", f"{int(bad.sum())} non-finite pixels", "finite values in valid pixels")
+    bands = _leading_bands(rgb)
+    bad = sum(int((mask[b] & ~np.all(np.isfinite(rgb[b]), axis=-1)).sum()) for b in bands)
+    if bad:
+        raise SkymodelInputError("rgb_linear", f"{bad} non-finite pixels", "finite values in valid pixels")
     ev = 0.0 if exposure_ev is None else scene.check("exposure_ev", exposure_ev)
     key = _check_number("key", key, 0.0, 1.0, open_low=True)
     white = _check_number("white", white, 0.0, 1e30, open_low=True)
-    rgb = np.where(mask[..., None], rgb, 0.0)
     if average_luminance is None:
-        avg = auto_exposure_luminance(rgb, mask)
+        Y = np.empty(rgb.shape[:-1])
+        for b in bands:
+            Y[b] = luminance_rec709(np.where(mask[b][..., None], rgb[b], 0.0))
+        avg = _log_average(Y, mask)
+        del Y
     else:
         avg = _check_number("average_luminance", average_luminance, 0.0, 1e300, open_low=True)
     scale = key / avg * 2.0**ev
+    out = np.empty(rgb.shape, dtype=float if return_float else np.uint8)
+    for b in bands:
+        out[b] = _tone_curve(rgb[b], mask[b], scale, white, return_float)
+    return out
+
+
+def _leading_bands(a):
+    """Index tuples that cover ``a`` (..., 3) in bands of rows of about :data:`BAND_VALUES`
+    values (one band, the whole array, below 3 dimensions)."""
+    if a.ndim < 3 or a.shape[0] == 0:
+        return [(Ellipsis,)]
+    starts, rows = _row_bands(a.shape[0], a.size // a.shape[0])
+    return [(slice(r0, r0 + rows),) for r0 in starts]
+
+
+def _tone_curve(rgb, mask, scale, white, return_float=False):
+    """:func:`tonemap` after the exposure is known: ``rgb`` (..., 3) float64, ``mask``
+    its valid pixels, ``scale`` = key / average luminance x 2^EV."""
+    rgb = np.where(mask[..., None], rgb, 0.0)
     c = rgb * scale
     L = luminance_rec709(c)
     pos = L > 0
@@ -622,12 +718,14 @@ def save_outputs(out=None, png=None, spectral=None, *, radiance=None, wavelength
     if xyz is not None:
         if spectral is not None:
             raise SkymodelInputError("spectral", spectral, "no spectral output from an XYZ image (render spectra)")
-        xyz_in = np.asarray(xyz, dtype=float)
-        if xyz_in.shape != camera.shape + (3,) or not np.all(np.isfinite(xyz_in)):
+        xyz_in = np.asarray(xyz)
+        if xyz_in.dtype.kind not in "fiu":
+            xyz_in = np.asarray(xyz_in, dtype=float)
+        if xyz_in.shape != camera.shape + (3,) or not _all_finite(xyz_in):
             raise SkymodelInputError("xyz", f"array of shape {xyz_in.shape}",
                                      f"finite values of shape ({camera.height}, {camera.width}, 3) for {camera!r}")
         rad = None
-        directions, valid = camera.directions()
+        valid = camera.valid_mask()
     else:
         rad = np.asarray(radiance)
         if rad.ndim != 3 or rad.shape[:2] != camera.shape:
@@ -638,21 +736,56 @@ def save_outputs(out=None, png=None, spectral=None, *, radiance=None, wavelength
     meta = {"camera": camera.describe(), "colour_space": space,
             "exposure_ev": exposure_ev, **(metadata or {})}
     _metadata_json(meta)
+    if rad is not None:
+        xyz_in = spectral_to_xyz(rad, wl)  # invalid pixels are 0 already
+
+    # The colour images are made by bands of rows, in float64 as a whole image would be, and
+    # kept only as the EXR's float32 (or half) pixels and the PNG's 8 bits (and, until the
+    # exposure is known, the float64 luminance): the writers add little to a render's peak.
+    H, W = camera.shape
+    starts, rows = _row_bands(H, 3 * W)
+
+    def colour(r0):
+        """XYZ (invalid pixels 0) and Rec.709 of rows r0 .. r0 + rows, float64."""
+        x = np.where(valid[r0:r0 + rows, :, None], np.asarray(xyz_in[r0:r0 + rows], dtype=float), 0.0)
+        return x, xyz_to_rgb(x, "rec709")
 
     jobs = []
-    xyz = np.where(valid[..., None], spectral_to_xyz(rad, wl) if rad is not None else xyz_in, 0.0)
-    rgb709 = xyz_to_rgb(xyz, "rec709")
+    exr = Y = None
     if "out" in paths:
+        exr = np.empty((H, W, 3), dtype="<f2" if half else "<f4")
+        check = _ExrValueCheck(np.float64, half)
+    if "png" in paths:
+        Y = np.empty((H, W))
+        bad_png = 0
+    for r0 in starts:
+        x, rgb709 = colour(r0)
+        if exr is not None:
+            img = x if space == "xyz" else rgb709 if space == "rec709" else xyz_to_rgb(x, space)
+            check.add(img)
+            with np.errstate(over="ignore"):  # out of range: refused below, before any file
+                exr[r0:r0 + rows] = img
+        if Y is not None:
+            bad_png += int((valid[r0:r0 + rows] & ~np.all(np.isfinite(rgb709), axis=-1)).sum())
+            Y[r0:r0 + rows] = luminance_rec709(rgb709)
+    if exr is not None:
+        check.raise_if_bad()
         if space == "xyz":
-            img, chans, chroma = xyz, ("X", "Y", "Z"), None
+            chans, chroma = ("X", "Y", "Z"), None
         else:
-            img = rgb709 if space == "rec709" else xyz_to_rgb(xyz, space)
             chans, chroma = ("R", "G", "B"), CHROMATICITIES[space]
         attrs = {"comments": "skymodel: scene-linear radiometric colour (CIE 1931 integrals of W m^-2 sr^-1 nm^-1)",
                  "skymodel": _metadata_json(meta)}
-        jobs.append(_prepare_exr(paths["out"], img, chans, half, compression, chroma, attrs, 4, parameter="out"))
-    if "png" in paths:
-        rgb8 = tonemap(rgb709, exposure_ev, valid=valid)
+        jobs.append(_prepare_exr(paths["out"], exr, chans, half, compression, chroma, attrs, 4, parameter="out"))
+    if Y is not None:  # tonemap(rgb709, exposure_ev, valid=valid), by bands
+        if bad_png:
+            raise SkymodelInputError("rgb_linear", f"{bad_png} non-finite pixels", "finite values in valid pixels")
+        ev = 0.0 if exposure_ev is None else scene.check("exposure_ev", exposure_ev)
+        scale = TONEMAP_KEY / _log_average(Y, valid) * 2.0**ev
+        Y = None
+        rgb8 = np.empty((H, W, 3), dtype=np.uint8)
+        for r0 in starts:
+            rgb8[r0:r0 + rows] = _tone_curve(colour(r0)[1], valid[r0:r0 + rows], scale, TONEMAP_WHITE)
         jobs.append(_prepare_png(paths["png"], rgb8, {"Software": "skymodel"}, parameter="png"))
     if "spectral" in paths:
         jobs.append(_prepare_npz(paths["spectral"], rad, wl, directions, valid, meta, parameter="spectral"))
