@@ -38,3 +38,41 @@ def test_memory_guard_counts_only_the_kept_channels():
     with pytest.raises(SkymodelInputError, match="memory|GiB|bytes"):
         make_camera("equirectangular", 4096, n_wavelengths=81)
     make_camera("equirectangular", 4096, n_wavelengths=3)
+
+
+def test_render_sky_reduced_checks_render_skys_memory_estimate_before_any_work(case, monkeypatch):
+    """Called directly (the add-on's path), render_sky_reduced refuses a render over the limit
+    with the same estimate as render_sky and the CLI (skymodel.render.memory: n_channels values
+    a pixel, the spectra of band_pixels marched pixels), before solving or marching anything."""
+    from skymodel.errors import SkymodelInputError
+    from skymodel.render import sky
+    from skymodel.render.memory import GIB, estimate_render_memory
+    from skymodel.render.skyview import xyz_reduction
+
+    prof, _, _ = case
+
+    def no_work(*a, **k):
+        raise AssertionError("work started before the memory check")
+
+    monkeypatch.setattr(sky, "_solution", no_work)
+    monkeypatch.setattr(sky, "SkyMarcher", no_work)
+    n_wl = prof.wavelengths_nm.size
+    cam = make_camera("equirectangular", 8192, n_wavelengths=3)  # the camera's own image-only guard lets it pass
+    for reduce, method, table in ((xyz_reduction(prof.wavelengths_nm), "auto", None),
+                                  (xyz_reduction(prof.wavelengths_nm), "direct", False),
+                                  (lambda r, w: spectral_to_rgb(r, w), "auto", False)):
+        est = estimate_render_memory(8192, 4096, n_wl, "final", wavelengths_nm=prof.wavelengths_nm, image_channels=3,
+                                     band_pixels=4096, sky_view_table=table)
+        limit = 0.99 * est.total / GIB
+        with pytest.raises(SkymodelInputError) as e:
+            render_sky_reduced(prof, cam, 20.0, reduce, 3, quality="final", band_pixels=4096, method=method,
+                               max_memory_gib=limit)
+        assert e.value.parameter == "max_memory" and est.text() in str(e.value)
+    direct = estimate_render_memory(8192, 4096, n_wl, "final", image_channels=3, band_pixels=4096,
+                                    sky_view_table=False)
+    assert direct.total > estimate_render_memory(8192, 4096, n_wl, "final", image_channels=3,
+                                                 band_pixels=4096).total
+    # the default limit (the registry's max_memory, 4 GiB) applies as in render_sky
+    with pytest.raises(SkymodelInputError, match="max_memory"):
+        render_sky_reduced(prof, make_camera("equirectangular", 8192, n_wavelengths=3), 20.0,
+                           lambda r, w: spectral_to_rgb(r, w), 3, quality="final", band_pixels=1 << 20)

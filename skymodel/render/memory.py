@@ -122,7 +122,7 @@ def _table_min_pixels() -> int:
 
 def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=None, *, wavelengths_nm=None,
                            n_pixels: int | None = None, image_channels: int | None = None,
-                           band_pixels: int | None = None) -> MemoryEstimate:
+                           band_pixels: int | None = None, sky_view_table: bool | None = None) -> MemoryEstimate:
     """Estimated peak resident memory of rendering ``width x height`` pixels at
     ``n_wavelengths`` wavelengths with ``quality`` (a preset name, a MarchSettings, or
     None for the default quality); ``wavelengths_nm`` (optional) gives the solver's
@@ -130,7 +130,9 @@ def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=
     ``image_channels`` the values kept per pixel (default ``n_wavelengths``: the spectral
     cube; 3 for a render reduced to colour band by band, whose pixels marched directly
     hold the spectra of ``band_pixels`` of them at once, default all; images of at least
-    ``skymodel.render.skyview.TABLE_MIN_PIXELS`` pixels go through the sky-view table)."""
+    ``skymodel.render.skyview.TABLE_MIN_PIXELS`` pixels go through the sky-view table;
+    ``sky_view_table=False``: every pixel is marched whatever the size, as a render with
+    ``method="direct"`` does; None: by the size)."""
     from skymodel.render.quality import quality_settings
 
     s = quality_settings(quality)
@@ -150,7 +152,7 @@ def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=
     # three parts of the cube are held (a hemisphere camera: up to 1 - cos(sun_exact) of them)
     near = pixels if s.exact else math.ceil(pixels * (1.0 - math.cos(math.radians(s.sun_exact_deg))))
     near_bands = BAND_COPIES * min(s.chunk, _march_piece(), near) * per_direction
-    table = not s.exact and pixels >= _table_min_pixels()
+    table = not s.exact and pixels >= _table_min_pixels() and sky_view_table is not False
     if table:  # resampled from the sky-view table: no pixel is marched
         image = kept + TABLE_IMAGE_COPIES * cube
     else:
@@ -171,12 +173,13 @@ def limit_bytes(max_memory_gib=None) -> float:
 
 def check_render_memory(width: int, height: int, n_wavelengths: int, quality=None, max_memory_gib=None, *,
                         wavelengths_nm=None, image_channels: int | None = None,
-                        band_pixels: int | None = None) -> MemoryEstimate:
+                        band_pixels: int | None = None, sky_view_table: bool | None = None) -> MemoryEstimate:
     """The estimate (:func:`estimate_render_memory`), or :class:`SkymodelInputError`
     naming ``max_memory`` when it exceeds ``max_memory_gib`` [GiB] (None: the default)."""
     limit = limit_bytes(max_memory_gib)
     est = estimate_render_memory(width, height, n_wavelengths, quality, wavelengths_nm=wavelengths_nm,
-                                 image_channels=image_channels, band_pixels=band_pixels)
+                                 image_channels=image_channels, band_pixels=band_pixels,
+                                 sky_view_table=sky_view_table)
     if est.total > limit:
         gib = limit / GIB
         raise SkymodelInputError(

@@ -123,8 +123,9 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
     settings = check_render_arguments(profile, camera, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m,
                                       quality)
     sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings = settings
+    method = _check_method(method)
     check_render_memory(camera.width, camera.height, profile.wavelengths_nm.size, settings, max_memory_gib,
-                        wavelengths_nm=profile.wavelengths_nm)
+                        wavelengths_nm=profile.wavelengths_nm, sky_view_table=None if method != "direct" else False)
     t0 = time.perf_counter()
     solution = _solution(profile, settings, solution, solutions, progress)
     marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
@@ -148,7 +149,7 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
 def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce, n_channels: int,
                        sun_azimuth_deg: float = 180.0, observer_altitude_m: float = 0.0, quality=None,
                        band_pixels: int = 65536, progress=None, solution=None, method: str = "auto",
-                       include_sun: bool = False, solutions=None):
+                       include_sun: bool = False, solutions=None, max_memory_gib=None):
     """Render ``camera`` without ever holding the whole spectral cube: each band of about
     ``band_pixels`` pixels is reduced to ``n_channels`` values at once, so memory grows with
     the image as ``n_channels`` values per pixel, not ``n_wl``.
@@ -161,7 +162,9 @@ def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce
     built in the reduced channels and resampled, so a 4096x2048 panorama holds 3 values a
     pixel. ``include_sun``: add the solar disc (:func:`sun_disc_spectra`) before the
     finish (the add-on leaves it out and draws a lamp). ``solution``, ``solutions``: as in
-    :func:`render_sky`.
+    :func:`render_sky`. ``max_memory_gib`` [GiB]: as in :func:`render_sky`, the limit of the
+    same estimate (:func:`skymodel.render.memory.check_render_memory`, ``n_channels`` values
+    a pixel, the spectra of ``band_pixels`` marched pixels), checked before any work.
 
     Returns ``(image (H, W, n_channels), sun_irradiance (n_wl,), info)``; invalid pixels are 0.
     """
@@ -171,6 +174,11 @@ def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce
                                       quality)
     sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings = settings
     method = _check_method(method)
+    from skymodel.render.memory import check_render_memory
+
+    check_render_memory(camera.width, camera.height, profile.wavelengths_nm.size, settings, max_memory_gib,
+                        wavelengths_nm=profile.wavelengths_nm, image_channels=n_channels, band_pixels=band_pixels,
+                        sky_view_table=None if isinstance(reduce, Reduction) and method != "direct" else False)
     t0 = time.perf_counter()
     solution = _solution(profile, settings, solution, solutions, progress)
     marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
