@@ -341,11 +341,16 @@ def _in_folder(path: str, folder: Path) -> bool:
 
 
 def clear_cache() -> dict:
-    """Empty the add-on's cache folder (:func:`cache_dir`). An open image still read from
-    the cache (a .blend built before images were packed by default) is packed first, so
-    the scene keeps its sky. Returns ``{"files", "bytes", "packed", "folder"}``."""
+    """Empty the add-on's cache folder (:func:`cache_dir`): the sky images, their records and
+    the multiple-scattering solutions in its ``solutions/`` (only the files the cache wrote;
+    :func:`skymodel.render.environment.clear_cache`). An open image still read from the
+    cache (a .blend built before images were packed by default) is packed first, so the
+    scene keeps its sky. Refused while a build runs (it writes into the folder). Returns
+    ``{"files", "bytes", "packed", "folder"}``."""
     from skymodel.render.environment import clear_cache as clear_folder
 
+    if JOB is not None and JOB.running:
+        raise RuntimeError("a sky build is running; clear the cache when it has finished (Esc cancels it)")
     folder = cache_dir()
     packed = 0
     for img in bpy.data.images:
@@ -360,14 +365,18 @@ def clear_cache() -> dict:
 
 
 class SKYMODEL_OT_clear_cache(bpy.types.Operator):
-    """Delete the rendered skies the add-on keeps in its cache folder (scenes keep their packed or saved images)"""
+    """Delete the rendered skies and multiple-scattering solutions the add-on keeps in its cache folder (scenes keep their packed or saved images)"""
 
     bl_idname = "skymodel.clear_cache"
     bl_label = "Clear Sky Cache"
     bl_options = {"REGISTER"}
 
     def execute(self, context):
-        r = clear_cache()
+        try:
+            r = clear_cache()
+        except RuntimeError as ex:
+            self.report({"ERROR"}, f"Skymodel: {ex}")
+            return {"CANCELLED"}
         text = f"Skymodel: cache cleared, {r['files']} files, {r['bytes'] / 1e6:.1f} MB freed ({r['folder']})"
         if r["packed"]:
             text += f"; {r['packed']} image(s) still read from the cache were packed into the .blend first"

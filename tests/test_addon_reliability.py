@@ -316,17 +316,56 @@ def test_corrupt_cached_exr_is_detected_and_rebuilt(scene):
 def test_clear_cache_reports_what_it_freed_and_keeps_the_scene(scene):
     from blender_addon import ops
 
+    from skymodel.render import environment
+
     scene.world.skymodel.image_storage = "PACK"
     assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
-    n_files = len(list(ops.cache_dir().glob("sky-*")))
+    folder = ops.cache_dir()
+    n_files = len(list(folder.glob("sky-*")))
     assert n_files >= 2
-    (ops.cache_dir() / "not-ours.txt").write_text("keep")
+    # the multiple-scattering solutions the build stores in solutions/ (the build may have
+    # taken its solution from memory and written none: then one named as the cache names
+    # them, SolutionCache.path, and a temporary of one being written, as mkstemp names it)
+    solutions = folder / environment.SOLUTIONS_FOLDER
+    solutions.mkdir(exist_ok=True)
+    stored = environment.solution_cache(folder).path("0123456789abcdef" * 2)
+    assert stored.parent == solutions
+    stored.write_bytes(b"\0" * 1000)
+    (solutions / f"{stored.name}.k2j4x9.tmp").write_bytes(b"\0" * 10)
+    ours = sorted(solutions.glob("solution-*"))
+    assert len(ours) >= 2
+    solution_bytes = sum(f.stat().st_size for f in ours)
+    (folder / "not-ours.txt").write_text("keep")
+    (solutions / "notes.txt").write_text("keep")
+    assert environment.cache_size(folder) == (n_files + len(ours), sum(
+        f.stat().st_size for f in [*folder.glob("sky-*"), *ours]))
     r = ops.clear_cache()
-    assert r["files"] == n_files and r["bytes"] > 0
-    assert (ops.cache_dir() / "not-ours.txt").is_file()
-    (ops.cache_dir() / "not-ours.txt").unlink()
+    assert r["files"] == n_files + len(ours) and r["bytes"] > solution_bytes
+    assert not any(solutions.glob("solution-*"))
+    assert (folder / "not-ours.txt").is_file() and (solutions / "notes.txt").is_file()
+    (folder / "not-ours.txt").unlink()
+    (solutions / "notes.txt").unlink()
     assert bpy.data.images["Skymodel Sky"].size[0] == 64
     assert ops.clear_cache()["files"] == 0
+    assert not solutions.exists()  # the emptied solutions/ goes too
+    # a build after the clear still works (from the solution in memory or solved again)
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    # refused while a build runs (it writes into the folder)
+    saved_job = ops.JOB
+
+    class _Running:
+        running = True
+
+    ops.JOB = _Running()
+    try:
+        with pytest.raises(RuntimeError, match="build is running"):
+            ops.clear_cache()
+        with pytest.raises(RuntimeError, match="build is running"):  # the operator reports an ERROR
+            bpy.ops.skymodel.clear_cache()
+    finally:
+        ops.JOB = saved_job
+    assert any(folder.glob("sky-*"))
+    ops.clear_cache()
 
 
 def test_cache_lives_outside_the_extension_folder(addon, monkeypatch):

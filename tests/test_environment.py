@@ -84,3 +84,35 @@ def test_display_exposure_is_the_incident_rule_in_daylight_and_darker_at_dusk():
     assert -3.2 < d < -2.4
     # a dimmer sky is shown darker (lower key), not at the same level
     assert environment.sky_key(0.02) < environment.sky_key(0.5) < environment.sky_key(5.0)
+
+
+def test_clear_cache_deletes_and_counts_the_stored_solutions(tmp_path):
+    """clear_cache / cache_size cover the multiple-scattering solutions that solution_cache
+    stores in <cache folder>/solutions (SolutionCache.path names them; _store's temporaries
+    are mkstemp(prefix=name + ".", suffix=".tmp")), and only those: other files stay."""
+    import fnmatch
+    import os
+    import tempfile
+
+    folder = tmp_path / "cache"
+    sols = folder / environment.SOLUTIONS_FOLDER
+    sols.mkdir(parents=True)
+    stored = environment.solution_cache(folder).path("ab" * 32)
+    assert stored.parent == sols
+    assert any(fnmatch.fnmatch(stored.name, p) for p in environment.SOLUTION_PATTERNS)
+    stored.write_bytes(b"x" * 300)
+    fd, tmp = tempfile.mkstemp(prefix=stored.name + ".", suffix=".tmp", dir=sols)  # as SolutionCache._store
+    os.write(fd, b"y" * 20)
+    os.close(fd)
+    (folder / "sky-0123.exr").write_bytes(b"e" * 50)
+    (folder / "sky-0123.json").write_bytes(b"{}")
+    (sols / "README.txt").write_text("not ours")
+    (folder / "solution-v1-x.pickle").write_bytes(b"not in solutions/")
+    assert environment.cache_size(folder) == (4, 300 + 20 + 50 + 2)
+    assert environment.clear_cache(folder, keep=[folder / "sky-0123.exr"]) == (3, 300 + 20 + 2)
+    assert sorted(p.name for p in sols.iterdir()) == ["README.txt"]
+    assert (folder / "sky-0123.exr").is_file() and (folder / "solution-v1-x.pickle").is_file()
+    (sols / "README.txt").unlink()
+    assert environment.clear_cache(folder) == (1, 50)
+    assert not sols.exists()  # emptied by the cache: removed
+    assert environment.cache_size(tmp_path / "missing") == (0, 0)

@@ -72,6 +72,7 @@ from skymodel import sun as sun_module
 from skymodel.render import image_io
 from skymodel.render import sky as render_sky
 from skymodel.render.cameras import make_camera
+from skymodel.render.memory import check_render_memory
 from skymodel.render.quality import QUALITIES
 from skymodel.render.skyview import rgb_reduction
 from skymodel.wavelengths import default_wavelengths
@@ -275,6 +276,8 @@ def _write_json_atomic(path: Path, data: dict) -> None:
             tmp.unlink()
 
 
+#: Pixels whose spectra the environment build marches at once (render_sky_reduced's band_pixels).
+ENV_BAND_PIXELS = 1 << 20
 #: Multiple-scattering solutions kept in memory per cache folder (a final one is ~150 MB).
 SOLUTIONS_IN_MEMORY = 2
 _SOLUTION_CACHES: dict = {}
@@ -289,7 +292,7 @@ def solution_cache(folder):
 
     key = str(Path(folder).resolve())
     if key not in _SOLUTION_CACHES:
-        _SOLUTION_CACHES[key] = SolutionCache(Path(folder) / "solutions", keep=SOLUTIONS_IN_MEMORY)
+        _SOLUTION_CACHES[key] = SolutionCache(Path(folder) / SOLUTIONS_FOLDER, keep=SOLUTIONS_IN_MEMORY)
     return _SOLUTION_CACHES[key]
 
 
@@ -385,31 +388,54 @@ def _read_cached(exr: Path, meta: Path, progress) -> EnvironmentMap | None:
     return env
 
 
-#: The files a cache folder holds (:func:`render_environment`'s entries and their temporaries).
+#: The files a cache folder holds: :func:`render_environment`'s entries and their
+#: temporaries, and in :data:`SOLUTIONS_FOLDER` the multiple-scattering solutions that
+#: :func:`solution_cache` stores (``SolutionCache.path``: ``solution-v<format>-<version>-<key>.pickle``)
+#: and their temporaries (``<that name>.<random>.tmp``); a test checks the names still match.
 CACHE_PATTERNS = ("sky-*.exr", "sky-*.json", ".sky-*.tmp")
+#: The sub-folder of a cache folder where :func:`solution_cache` keeps solutions on disk.
+SOLUTIONS_FOLDER = "solutions"
+SOLUTION_PATTERNS = ("solution-v*.pickle", "solution-v*.pickle.*.tmp")
+
+
+def _cache_files(folder):
+    """The files of a cache folder named as :data:`CACHE_PATTERNS` and, in its
+    :data:`SOLUTIONS_FOLDER`, as :data:`SOLUTION_PATTERNS` (no others)."""
+    folder = Path(folder)
+    found = {f for pat in CACHE_PATTERNS for f in folder.glob(pat)}
+    found |= {f for pat in SOLUTION_PATTERNS for f in (folder / SOLUTIONS_FOLDER).glob(pat)}
+    return sorted(f for f in found if f.is_file() and not f.is_symlink())
 
 
 def cache_size(folder) -> tuple[int, int]:
-    """``(files, bytes)`` of the cache entries in ``folder`` (0, 0 when it does not exist)."""
-    files = [f for pat in CACHE_PATTERNS for f in Path(folder).glob(pat) if f.is_file()]
+    """``(files, bytes)`` of the cache entries in ``folder``, solutions included (0, 0 when
+    it does not exist)."""
+    files = _cache_files(folder)
     return len(files), sum(f.stat().st_size for f in files)
 
 
 def clear_cache(folder, keep=()) -> tuple[int, int]:
-    """Delete the cache entries in ``folder`` (only files named as :data:`CACHE_PATTERNS`;
-    anything else stays), except the paths in ``keep``. Returns ``(files, bytes)`` freed."""
+    """Delete the cache entries in ``folder``: the sky images and their records
+    (:data:`CACHE_PATTERNS`) and the multiple-scattering solutions on disk
+    (:data:`SOLUTION_PATTERNS` in :data:`SOLUTIONS_FOLDER`, removed too when that leaves
+    it empty); anything else stays, and so do the paths in ``keep``. Returns ``(files,
+    bytes)`` freed. Solutions the running process holds in memory (:func:`solution_cache`)
+    are not files and stay until it ends."""
     keep = {Path(k).resolve() for k in keep}
     n = size = 0
-    for pat in CACHE_PATTERNS:
-        for f in Path(folder).glob(pat):
-            if not f.is_file() or f.resolve() in keep:
-                continue
-            b = f.stat().st_size
-            try:
-                f.unlink()
-            except OSError:
-                continue
-            n, size = n + 1, size + b
+    for f in _cache_files(folder):
+        if f.resolve() in keep:
+            continue
+        b = f.stat().st_size
+        try:
+            f.unlink()
+        except OSError:
+            continue
+        n, size = n + 1, size + b
+    try:
+        (Path(folder) / SOLUTIONS_FOLDER).rmdir()  # only when empty
+    except OSError:
+        pass
     return n, size
 
 
@@ -495,6 +521,9 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
             settings = dataclasses.replace(render_sky.quality_settings(quality),
                                            orders=int(orders) or None if orders is not None else None,
                                            earth_shadow=bool(earth_shadow))
+        # the memory guard of render_sky_reduced, before the solve rather than after it
+        check_render_memory(cam.width, cam.height, wl.size, settings, wavelengths_nm=wl, image_channels=3,
+                            band_pixels=ENV_BAND_PIXELS)
         # only the sun or the time changed since the last build: the multiple-scattering
         # solution of this atmosphere is reused (memory, then the cache folder's solutions/)
         if solutions is None:
@@ -504,7 +533,7 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
         solve_s = time.perf_counter() - t_solve
         rgb, sun_irradiance, render_info = render_sky.render_sky_reduced(
             prof, cam, sun_elevation_deg, rgb_reduction(wl, finish=fit_into_gamut), 3, sun_azimuth_deg,
-            observer_altitude_m, settings, band_pixels=1 << 20, progress=_Orders(progress), solution=solution,
+            observer_altitude_m, settings, band_pixels=ENV_BAND_PIXELS, progress=_Orders(progress), solution=solution,
             include_sun=include_sun)
     else:
         radiance, sun_irradiance = model_radiance(cam, wl, include_sun)
