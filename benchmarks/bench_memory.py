@@ -39,14 +39,17 @@ sys.exit(rc)
 """
 
 
-def measure(quality: str, width: int, height: int, step_nm: float, folder: str, spectral: bool):
+def measure(quality: str, width: int, height: int, step_nm: float, folder: str, spectral: bool, camera=None):
     """(peak RSS bytes, seconds) of one ``skymodel render`` in a child process (with
-    ``spectral``, ``--spectral``: the render that keeps the spectral cube)."""
+    ``spectral``, ``--spectral``: the render that keeps the spectral cube; ``camera``: ``--camera``,
+    None the CLI's default)."""
     out = os.path.join(folder, f"{quality}_{width}x{height}.exr")
     cmd = [sys.executable, "-c", CHILD, "render", "--quality", quality, "--size", f"{width}x{height}",
            "--wavelength-step", f"{step_nm:g}", "--max-memory", "4096", "--quiet", "--out", out]
     if spectral:
         cmd += ["--spectral", out[:-4] + ".npz"]
+    if camera:
+        cmd += ["--camera", camera]
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, usage = os.wait4(proc.pid, 0)
@@ -64,9 +67,11 @@ def main(argv=None) -> int:
     ap.add_argument("--step", type=float, default=STEP_NM, help="wavelength step [nm] (default %(default)s)")
     ap.add_argument("--spectral", action="store_true",
                     help="renders that keep the spectral cube (--spectral); default: the CLI's colour render")
+    ap.add_argument("--camera", default=None, help="skymodel render's --camera (default: the CLI's default)")
     ap.add_argument("--write", action="store_true", help="write the table into docs/reliability.md")
     args = ap.parse_args(argv)
 
+    from skymodel.cli.render import REDUCED_BAND_PIXELS
     from skymodel.render.memory import GIB, estimate_render_memory
     from skymodel.wavelengths import default_wavelengths
 
@@ -80,8 +85,9 @@ def main(argv=None) -> int:
             w, h = (int(v) for v in size.split("x"))
             # as skymodel render estimates it: the cube only with --spectral, else 3 values a pixel
             est = estimate_render_memory(w, h, wl.size, quality, wavelengths_nm=wl,
-                                         image_channels=None if args.spectral else 3)
-            peak, secs = measure(quality, w, h, args.step, folder, args.spectral)
+                                         image_channels=None if args.spectral else 3,
+                                         band_pixels=None if args.spectral else REDUCED_BAND_PIXELS)
+            peak, secs = measure(quality, w, h, args.step, folder, args.spectral, args.camera)
             ratio = est.total / peak
             ratios.append(ratio)
             rows.append(f"| {quality} | {w}x{h} | {wl.size} | {est.gib:.2f} ({est.tables / GIB:.2f} / "
@@ -91,7 +97,7 @@ def main(argv=None) -> int:
     summary = (f"Estimate / peak over {len(ratios)} renders: {min(ratios):.2f} .. {max(ratios):.2f} "
                f"(the guard's target: 0.75 .. 1.25).")
     body = "\n".join([
-        f"`skymodel render{' --spectral' if args.spectral else ''}` (EXR + PNG{' + NPZ' if args.spectral else ''}, "
+        f"`skymodel render{' --spectral' if args.spectral else ''}{' --camera ' + args.camera if args.camera else ''}` (EXR + PNG{' + NPZ' if args.spectral else ''}, "
         "rural, sun 25 deg) in a child process per row; the peak is the "
         "child's `ru_maxrss`; the estimate is `skymodel.render.memory.estimate_render_memory`, which "
         "`render_sky` and `skymodel render` compare with `--max-memory` (GiB, default "

@@ -178,6 +178,27 @@ def test_render_sky_refuses_a_render_over_the_memory_limit(tiny_scene):
         assert e.value.parameter == "max_memory"
 
 
+def test_cli_colour_render_checks_its_own_max_memory(monkeypatch, tmp_path):
+    """`skymodel render` without --spectral hands --max-memory to render_sky_reduced, whose
+    check once used the default 4 GiB whatever --max-memory said."""
+    from skymodel.render import sky
+
+    class Stop(BaseException):
+        pass
+
+    seen = {}
+
+    def stop(*args, **kwargs):
+        seen.update(kwargs)
+        raise Stop
+
+    monkeypatch.setattr(sky, "render_sky_reduced", stop)
+    with pytest.raises(Stop):
+        run_cli(["render", "--camera", "equirectangular", "--size", "64x32", "--quality", "preview",
+                 "--max-memory", "64", "--quiet", "--out", str(tmp_path / "x.exr")])
+    assert seen["max_memory_gib"] == 64.0
+
+
 # ---------------------------------------------------------------------------- the sun
 
 

@@ -95,7 +95,8 @@ def cmd_render(args) -> int:
         xyz, _, info = render_sky_reduced(profile, camera, sun.elevation_deg, xyz_reduction(wl), 3,
                                           sun.azimuth_deg, args.observer_altitude, settings,
                                           band_pixels=REDUCED_BAND_PIXELS, progress=prog.order,
-                                          include_sun=not args.no_sun, solutions=False)
+                                          include_sun=not args.no_sun, solutions=False,
+                                          max_memory_gib=limit_gib)
         radiance = None
     if not args.quiet:
         print(file=sys.stderr)

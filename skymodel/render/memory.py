@@ -18,7 +18,10 @@ the largest phase, not the sum:
   three of them while the pixels near the sun are marched in bands, with the tables kept;
   :data:`TABLE_IMAGE_COPIES` when the image is resampled from the sky-view table
   (:mod:`skymodel.render.skyview`, images of ``TABLE_MIN_PIXELS`` pixels or more); a render
-  reduced to colour keeps 3 values a pixel plus the spectra of the band it marches.
+  reduced to colour keeps 3 values a pixel plus the spectra of the band it marches, or,
+  through the table, its image, :data:`REDUCED_TABLE_PIXEL_BYTES` a pixel (directions,
+  indices, mask) and :data:`REDUCED_TABLE_BAND_BYTES` a pixel of the band it looks up (the
+  writers work by bands of rows, :func:`skymodel.render.image_io.save_outputs`, and need less).
 
 The constants were measured, not derived (peak of each phase with ``tracemalloc`` for
 the preview and final presets, then the whole render's peak resident memory):
@@ -61,6 +64,14 @@ BAND_COPIES = 26.0
 IMAGE_COPIES = 6.0
 #: ... when the image is resampled from the sky-view table (measured: 4.7 final, 4.8 preview at 1024x512).
 TABLE_IMAGE_COPIES = 5.0
+#: A render reduced to colour through the sky-view table (``image_channels`` fewer than the wavelengths): bytes a pixel
+#: besides its image (H x W x image_channels float64) while it is looked up: the directions (3 float64),
+#: the indices of the valid pixels (int64) and the mask (bool) (measured: 57 bytes a pixel with 3 channels
+#: from the peaks of preview 4096x2048 and 8192x4096, equirectangular).
+REDUCED_TABLE_PIXEL_BYTES = 33.0
+#: ... and bytes per pixel of the band being looked up (``band_pixels``; the lookup's and the
+#: colour finish's temporaries; measured: 0.74 GiB for a band of 2^20 pixels, preview 4096x2048).
+REDUCED_TABLE_BAND_BYTES = 755.0
 #: The tables kept through the march, in float64 transport matrices (the float32 copy, the field, the
 #: allocator's unreturned pages; measured: the final preset's image phase over the preview's).
 KEPT_TABLES = 1.0
@@ -153,7 +164,12 @@ def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=
     near = pixels if s.exact else math.ceil(pixels * (1.0 - math.cos(math.radians(s.sun_exact_deg))))
     near_bands = BAND_COPIES * min(s.chunk, _march_piece(), near) * per_direction
     table = not s.exact and pixels >= _table_min_pixels() and sky_view_table is not False
-    if table:  # resampled from the sky-view table: no pixel is marched
+    if table and image_channels is not None and int(image_channels) < n_wl:
+        # reduced (to colour) through the table: the image, the directions and indices, one band's lookup
+        # (the writers then work by bands of rows and need less: image_io.save_outputs)
+        looked_up = min(pixels, pixels if band_pixels is None else max(int(band_pixels), 1))
+        image = kept + cube + REDUCED_TABLE_PIXEL_BYTES * w * h + REDUCED_TABLE_BAND_BYTES * looked_up
+    elif table:  # resampled from the sky-view table: no pixel is marched
         image = kept + TABLE_IMAGE_COPIES * cube
     else:
         image = kept + max(IMAGE_COPIES * cube, 3 * cube + near_bands)
