@@ -53,7 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from skymodel.data import csv_columns
-from skymodel.errors import SkymodelInputError
+from skymodel.errors import SkymodelInputError, check_array_range
 from skymodel.sun import (
     ASTRONOMICAL_UNIT_KM,
     STANDARD_PRESSURE_HPA,
@@ -79,18 +79,6 @@ MEAN_DISC_SOLID_ANGLE_SR = 6.4177e-5
 _MEEUS_CSV = "sources/moon/meeus_table_47.csv"
 _J2000 = np.datetime64("2000-01-01T12:00:00", "us")
 _US_PER_DAY = 86_400e6
-
-
-def _checked(name, value, low, high, unit):
-    allowed = f"finite numbers in [{low:g}, {high:g}] {unit}"
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise SkymodelInputError(name, value, allowed) from None
-    bad = ~np.isfinite(a) | (a < low) | (a > high)
-    if np.any(bad):
-        raise SkymodelInputError(name, float(np.atleast_1d(a)[np.atleast_1d(bad)][0]), allowed)
-    return a
 
 
 # ----------------------------------------------------------------------------- time
@@ -249,9 +237,9 @@ def moon_position(latitude_deg, longitude_deg, time_utc, *, altitude_m=0.0, refr
 
     Raises :class:`SkymodelInputError` naming the parameter for bad input, before any work.
     """
-    lat = _checked("latitude_deg", latitude_deg, -90.0, 90.0, "degrees")
-    lon = _checked("longitude_deg", longitude_deg, -180.0, 180.0, "degrees")
-    alt = _checked("altitude_m", altitude_m, *ALTITUDE_RANGE_M, "m")
+    lat = check_array_range("latitude_deg", latitude_deg, -90.0, 90.0, "degrees")
+    lon = check_array_range("longitude_deg", longitude_deg, -180.0, 180.0, "degrees")
+    alt = check_array_range("altitude_m", altitude_m, *ALTITUDE_RANGE_M, "m")
     t = as_utc_datetime64(time_utc)
     try:
         lat, lon, alt, t = np.broadcast_arrays(lat, lon, alt, t)
@@ -259,8 +247,8 @@ def moon_position(latitude_deg, longitude_deg, time_utc, *, altitude_m=0.0, refr
         raise SkymodelInputError("time_utc", f"shape {t.shape}",
                                  f"a shape that broadcasts with latitude {lat.shape} and longitude {lon.shape}") from None
     if refraction:
-        _checked("pressure_hpa", pressure_hpa, 0.0, 1100.0, "hPa")
-        _checked("temperature_c", temperature_c, -90.0, 60.0, "degC")
+        check_array_range("pressure_hpa", pressure_hpa, 0.0, 1100.0, "hPa")
+        check_array_range("temperature_c", temperature_c, -90.0, 60.0, "degC")
 
     days_ut = _days_since_j2000(t)
     year = 2000.0 + days_ut / 365.25
@@ -346,5 +334,5 @@ def moon_position(latitude_deg, longitude_deg, time_utc, *, altitude_m=0.0, refr
 
 def disc_solid_angle_sr(distance_km) -> np.ndarray:
     """Solid angle (sr) of the lunar disc seen from ``distance_km`` (300000-420000 km)."""
-    d = _checked("distance_km", distance_km, 300_000.0, 420_000.0, "km")
+    d = check_array_range("distance_km", distance_km, 300_000.0, 420_000.0, "km")
     return (2.0 * math.pi * (1.0 - np.cos(np.arcsin(MOON_RADIUS_KM / d))))[()]
