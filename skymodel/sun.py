@@ -183,6 +183,28 @@ class SolarPosition:
         return np.stack([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)], axis=-1)
 
 
+def nutation(T):
+    """Nutation in longitude and in obliquity and the true obliquity of the ecliptic, degrees,
+    at ``T`` Julian centuries (TT) since J2000.0: Meeus ch. 22, the four largest terms
+    (arcseconds) and the mean obliquity of eq. 22.2."""
+    omega = np.radians(125.04452 - 1934.136261 * T)
+    l_sun = np.radians(280.4665 + 36000.7698 * T)
+    l_moon = np.radians(218.3165 + 481267.8813 * T)
+    dpsi = (-17.20 * np.sin(omega) - 1.32 * np.sin(2 * l_sun) - 0.23 * np.sin(2 * l_moon)
+            + 0.21 * np.sin(2 * omega)) / 3600.0
+    deps = (9.20 * np.cos(omega) + 0.57 * np.cos(2 * l_sun) + 0.10 * np.cos(2 * l_moon)
+            - 0.09 * np.cos(2 * omega)) / 3600.0
+    eps0 = 23.0 + 26.0 / 60.0 + (21.448 - T * (46.8150 + T * (0.00059 - 0.001813 * T))) / 3600.0
+    return dpsi, deps, eps0 + deps
+
+
+def mean_sidereal_time_deg(days_ut):
+    """Greenwich mean sidereal time, degrees (not wrapped), ``days_ut`` days of UT since
+    J2000.0 (Meeus eq. 12.4)."""
+    Tu = days_ut / 36525.0
+    return 280.46061837 + 360.98564736629 * days_ut + Tu * Tu * (0.000387933 - Tu / 38710000.0)
+
+
 def _sun_equatorial(days):
     """Apparent geocentric sun for ``days`` since J2000.0 (2000-01-01 12:00).
 
@@ -199,23 +221,14 @@ def _sun_equatorial(days):
     true_longitude = L0 + centre
     true_anomaly = np.radians(M + centre)
     distance = 1.000001018 * (1.0 - ecc * ecc) / (1.0 + ecc * np.cos(true_anomaly))
-    # Meeus ch. 22: nutation, four largest terms (arcseconds), and the mean obliquity (eq. 22.2)
-    omega = np.radians(125.04452 - 1934.136261 * T)
-    l_sun = np.radians(280.4665 + 36000.7698 * T)
-    l_moon = np.radians(218.3165 + 481267.8813 * T)
-    dpsi = (-17.20 * np.sin(omega) - 1.32 * np.sin(2 * l_sun) - 0.23 * np.sin(2 * l_moon)
-            + 0.21 * np.sin(2 * omega)) / 3600.0
-    deps = (9.20 * np.cos(omega) + 0.57 * np.cos(2 * l_sun) + 0.10 * np.cos(2 * l_moon)
-            - 0.09 * np.cos(2 * omega)) / 3600.0
-    eps0 = 23.0 + 26.0 / 60.0 + (21.448 - T * (46.8150 + T * (0.00059 - 0.001813 * T))) / 3600.0
-    eps = np.radians(eps0 + deps)
+    dpsi, _, eps_deg = nutation(T)
+    eps = np.radians(eps_deg)
     # apparent longitude: nutation and annual aberration
     lam = np.radians(true_longitude + dpsi - 20.4898 / 3600.0 / distance)
     ra = np.degrees(np.arctan2(np.cos(eps) * np.sin(lam), np.cos(lam))) % 360.0
     dec = np.degrees(np.arcsin(np.sin(eps) * np.sin(lam)))
-    # Greenwich mean sidereal time (Meeus eq. 12.4) + equation of the equinoxes
-    gmst = 280.46061837 + 360.98564736629 * days + T * T * (0.000387933 - T / 38710000.0)
-    gast = (gmst + dpsi * np.cos(eps)) % 360.0
+    # Greenwich mean sidereal time + equation of the equinoxes
+    gast = (mean_sidereal_time_deg(days) + dpsi * np.cos(eps)) % 360.0
     # equation of time (Meeus eq. 28.1), wrapped to [-180, 180)
     eot = (L0 - 0.0057183 - ra + dpsi * np.cos(eps) + 180.0) % 360.0 - 180.0
     return ra, dec, distance, gast, eot

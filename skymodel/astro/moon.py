@@ -59,6 +59,8 @@ from skymodel.sun import (
     STANDARD_PRESSURE_HPA,
     STANDARD_TEMPERATURE_C,
     as_utc_datetime64,
+    mean_sidereal_time_deg,
+    nutation,
     refraction_correction,
     solar_position,
 )
@@ -130,19 +132,6 @@ def _meeus_tables():
     b = ~a
     mult = np.stack([c["D"], c["M"], c["Mp"], c["F"]], axis=1)
     return (mult[a], c["sine_1e6deg"][a], c["cosine_m"][a]), (mult[b], c["sine_1e6deg"][b])
-
-
-def _nutation(T):
-    """Nutation in longitude and obliquity (degrees) and the true obliquity (degrees)."""
-    omega = np.radians(125.04452 - 1934.136261 * T)
-    l_sun = np.radians(280.4665 + 36000.7698 * T)
-    l_moon = np.radians(218.3165 + 481267.8813 * T)
-    dpsi = (-17.20 * np.sin(omega) - 1.32 * np.sin(2 * l_sun) - 0.23 * np.sin(2 * l_moon)
-            + 0.21 * np.sin(2 * omega)) / 3600.0
-    deps = (9.20 * np.cos(omega) + 0.57 * np.cos(2 * l_sun) + 0.10 * np.cos(2 * l_moon)
-            - 0.09 * np.cos(2 * omega)) / 3600.0
-    eps0 = 23.0 + 26.0 / 60.0 + (21.448 - T * (46.8150 + T * (0.00059 - 0.001813 * T))) / 3600.0
-    return dpsi, deps, eps0 + deps
 
 
 def geocentric_ecliptic(days_tt) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -255,16 +244,14 @@ def moon_position(latitude_deg, longitude_deg, time_utc, *, altitude_m=0.0, refr
     days_tt = days_ut + delta_t_seconds(year) / 86400.0
     lam, beta, dist = geocentric_ecliptic(days_tt)
     T = days_tt / 36525.0
-    dpsi, _, eps = _nutation(T)
+    dpsi, _, eps = nutation(T)
     lam_app = (lam + dpsi) % 360.0
     lr, br, er = np.radians(lam_app), np.radians(beta), np.radians(eps)
     ra = np.degrees(np.arctan2(np.sin(lr) * np.cos(er) - np.tan(br) * np.sin(er), np.cos(lr))) % 360.0
     dec = np.degrees(np.arcsin(np.sin(br) * np.cos(er) + np.cos(br) * np.sin(er) * np.sin(lr)))
 
     # sidereal time (UT) and the observer's geocentric position, equatorial frame of date
-    Tu = days_ut / 36525.0
-    gmst = 280.46061837 + 360.98564736629 * days_ut + Tu * Tu * (0.000387933 - Tu / 38710000.0)
-    lst = np.radians((gmst + dpsi * np.cos(er) + lon) % 360.0)
+    lst = np.radians((mean_sidereal_time_deg(days_ut) + dpsi * np.cos(er) + lon) % 360.0)
     phi = np.radians(lat)
     a = EARTH_EQUATORIAL_RADIUS_KM
     e2 = EARTH_FLATTENING * (2.0 - EARTH_FLATTENING)

@@ -55,6 +55,7 @@ from skymodel.sun import (
     STANDARD_PRESSURE_HPA,
     STANDARD_TEMPERATURE_C,
     as_utc_datetime64,
+    nutation,
     refraction_correction,
     solar_position,
 )
@@ -165,20 +166,13 @@ def star_positions(latitude_deg: float, longitude_deg: float, time_utc, ra_deg=N
     z = (2306.2181 * T + 1.09468 * T**2 + 0.018203 * T**3) * as2r
     theta = (2004.3109 * T - 0.42665 * T**2 - 0.041833 * T**3) * as2r
     precession = _rot(2, -z) @ _rot(1, theta) @ _rot(2, -zeta)
-    # nutation (Meeus ch. 22, four terms) and the obliquity
-    omega = math.radians(125.04452 - 1934.136261 * T)
-    l_sun = math.radians(280.4665 + 36000.7698 * T)
-    l_moon = math.radians(218.3165 + 481267.8813 * T)
-    dpsi = (-17.20 * math.sin(omega) - 1.32 * math.sin(2 * l_sun) - 0.23 * math.sin(2 * l_moon)
-            + 0.21 * math.sin(2 * omega)) * as2r
-    deps = (9.20 * math.cos(omega) + 0.57 * math.cos(2 * l_sun) + 0.10 * math.cos(2 * l_moon)
-            - 0.09 * math.cos(2 * omega)) * as2r
-    eps0 = math.radians(23.0 + 26.0 / 60.0 + (21.448 - T * (46.8150 + T * (0.00059 - 0.001813 * T))) / 3600.0)
-    eps = eps0 + deps
-    nutation = _rot(0, -eps) @ _rot(2, -dpsi) @ _rot(0, eps0)
+    # nutation (Meeus ch. 22, four terms) and the obliquity, radians
+    dpsi, deps, eps = (math.radians(float(v)) for v in nutation(T))
+    eps0 = eps - deps
+    nutation_matrix = _rot(0, -eps) @ _rot(2, -dpsi) @ _rot(0, eps0)
     a, d = np.radians(ra), np.radians(dec)
     u = np.stack([np.cos(d) * np.cos(a), np.cos(d) * np.sin(a), np.sin(d)], axis=-1)
-    u = u @ (nutation @ precession).T
+    u = u @ (nutation_matrix @ precession).T
     # annual aberration: the Earth's velocity points 90 degrees behind the sun's longitude
     sp = solar_position(0.0, 0.0, t)
     sa, sd = math.radians(float(sp.right_ascension_deg)), math.radians(float(sp.declination_deg))
