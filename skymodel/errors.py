@@ -38,6 +38,22 @@ def check_range(parameter: str, value: float, low: float, high: float, unit: str
     return v
 
 
+def check_array_range(parameter: str, value, low: float, high: float, unit: str = ""):
+    """``value`` as a float array if every element is finite and in ``[low, high]``, else raise
+    naming ``parameter`` and the first offending element."""
+    import numpy as np
+
+    allowed = f"finite numbers in [{low:g}, {high:g}] {unit}".rstrip()
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise SkymodelInputError(parameter, value, allowed) from None
+    bad = ~np.isfinite(a) | (a < low) | (a > high)
+    if np.any(bad):
+        raise SkymodelInputError(parameter, float(np.atleast_1d(a)[np.atleast_1d(bad)][0]), allowed)
+    return a
+
+
 def check_choice(parameter: str, value: str, known: Iterable[str]) -> str:
     """Return ``value`` if it is one of ``known`` (case-insensitive), else raise listing the names."""
     names = list(known)

@@ -50,7 +50,7 @@ from datetime import date, datetime, timezone
 import numpy as np
 
 from skymodel.data import csv_columns
-from skymodel.errors import SkymodelInputError
+from skymodel.errors import SkymodelInputError, check_array_range
 from skymodel.wavelengths import as_wavelengths
 
 # ----------------------------------------------------------------------------- constants
@@ -88,18 +88,6 @@ _TIME_ALLOWED = (f"a datetime, numpy datetime64 or ISO 8601 string (naive means 
 
 
 # ----------------------------------------------------------------------------- input checks
-
-
-def _checked_array(name: str, value, low: float, high: float, unit: str) -> np.ndarray:
-    allowed = f"finite numbers in [{low:g}, {high:g}] {unit}".rstrip()
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise SkymodelInputError(name, value, allowed) from None
-    bad = ~np.isfinite(a) | (a < low) | (a > high)
-    if np.any(bad):
-        raise SkymodelInputError(name, float(np.atleast_1d(a)[np.atleast_1d(bad)][0]), allowed)
-    return a
 
 
 def _one_time(value) -> np.datetime64:
@@ -195,6 +183,28 @@ class SolarPosition:
         return np.stack([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)], axis=-1)
 
 
+def nutation(T):
+    """Nutation in longitude and in obliquity and the true obliquity of the ecliptic, degrees,
+    at ``T`` Julian centuries (TT) since J2000.0: Meeus ch. 22, the four largest terms
+    (arcseconds) and the mean obliquity of eq. 22.2."""
+    omega = np.radians(125.04452 - 1934.136261 * T)
+    l_sun = np.radians(280.4665 + 36000.7698 * T)
+    l_moon = np.radians(218.3165 + 481267.8813 * T)
+    dpsi = (-17.20 * np.sin(omega) - 1.32 * np.sin(2 * l_sun) - 0.23 * np.sin(2 * l_moon)
+            + 0.21 * np.sin(2 * omega)) / 3600.0
+    deps = (9.20 * np.cos(omega) + 0.57 * np.cos(2 * l_sun) + 0.10 * np.cos(2 * l_moon)
+            - 0.09 * np.cos(2 * omega)) / 3600.0
+    eps0 = 23.0 + 26.0 / 60.0 + (21.448 - T * (46.8150 + T * (0.00059 - 0.001813 * T))) / 3600.0
+    return dpsi, deps, eps0 + deps
+
+
+def mean_sidereal_time_deg(days_ut):
+    """Greenwich mean sidereal time, degrees (not wrapped), ``days_ut`` days of UT since
+    J2000.0 (Meeus eq. 12.4)."""
+    Tu = days_ut / 36525.0
+    return 280.46061837 + 360.98564736629 * days_ut + Tu * Tu * (0.000387933 - Tu / 38710000.0)
+
+
 def _sun_equatorial(days):
     """Apparent geocentric sun for ``days`` since J2000.0 (2000-01-01 12:00).
 
@@ -211,23 +221,14 @@ def _sun_equatorial(days):
     true_longitude = L0 + centre
     true_anomaly = np.radians(M + centre)
     distance = 1.000001018 * (1.0 - ecc * ecc) / (1.0 + ecc * np.cos(true_anomaly))
-    # Meeus ch. 22: nutation, four largest terms (arcseconds), and the mean obliquity (eq. 22.2)
-    omega = np.radians(125.04452 - 1934.136261 * T)
-    l_sun = np.radians(280.4665 + 36000.7698 * T)
-    l_moon = np.radians(218.3165 + 481267.8813 * T)
-    dpsi = (-17.20 * np.sin(omega) - 1.32 * np.sin(2 * l_sun) - 0.23 * np.sin(2 * l_moon)
-            + 0.21 * np.sin(2 * omega)) / 3600.0
-    deps = (9.20 * np.cos(omega) + 0.57 * np.cos(2 * l_sun) + 0.10 * np.cos(2 * l_moon)
-            - 0.09 * np.cos(2 * omega)) / 3600.0
-    eps0 = 23.0 + 26.0 / 60.0 + (21.448 - T * (46.8150 + T * (0.00059 - 0.001813 * T))) / 3600.0
-    eps = np.radians(eps0 + deps)
+    dpsi, _, eps_deg = nutation(T)
+    eps = np.radians(eps_deg)
     # apparent longitude: nutation and annual aberration
     lam = np.radians(true_longitude + dpsi - 20.4898 / 3600.0 / distance)
     ra = np.degrees(np.arctan2(np.cos(eps) * np.sin(lam), np.cos(lam))) % 360.0
     dec = np.degrees(np.arcsin(np.sin(eps) * np.sin(lam)))
-    # Greenwich mean sidereal time (Meeus eq. 12.4) + equation of the equinoxes
-    gmst = 280.46061837 + 360.98564736629 * days + T * T * (0.000387933 - T / 38710000.0)
-    gast = (gmst + dpsi * np.cos(eps)) % 360.0
+    # Greenwich mean sidereal time + equation of the equinoxes
+    gast = (mean_sidereal_time_deg(days) + dpsi * np.cos(eps)) % 360.0
     # equation of time (Meeus eq. 28.1), wrapped to [-180, 180)
     eot = (L0 - 0.0057183 - ra + dpsi * np.cos(eps) + 180.0) % 360.0 - 180.0
     return ra, dec, distance, gast, eot
@@ -242,8 +243,8 @@ def refraction_correction(true_elevation_deg, pressure_hpa: float = STANDARD_PRE
     at and above :data:`REFRACTION_CUTOFF_DEG`; 0 below, where the disc is wholly under the
     apparent horizon and the formula no longer holds. Never negative.
     """
-    p = _checked_array("pressure_hpa", pressure_hpa, 0.0, 1100.0, "hPa")
-    t = _checked_array("temperature_c", temperature_c, -90.0, 60.0, "degC")
+    p = check_array_range("pressure_hpa", pressure_hpa, 0.0, 1100.0, "hPa")
+    t = check_array_range("temperature_c", temperature_c, -90.0, 60.0, "degC")
     h = np.asarray(true_elevation_deg, dtype=float)
     ok = h >= REFRACTION_CUTOFF_DEG
     hs = np.where(ok, h, 0.0)
@@ -270,8 +271,8 @@ def solar_position(latitude_deg, longitude_deg, time_utc, *, refraction: bool = 
 
     Raises :class:`SkymodelInputError` naming the parameter for out-of-range or unparseable input.
     """
-    lat = _checked_array("latitude_deg", latitude_deg, -90.0, 90.0, "degrees")
-    lon = _checked_array("longitude_deg", longitude_deg, -180.0, 180.0, "degrees")
+    lat = check_array_range("latitude_deg", latitude_deg, -90.0, 90.0, "degrees")
+    lon = check_array_range("longitude_deg", longitude_deg, -180.0, 180.0, "degrees")
     t = as_utc_datetime64(time_utc)
     try:
         lat, lon, t = np.broadcast_arrays(lat, lon, t)
@@ -279,8 +280,8 @@ def solar_position(latitude_deg, longitude_deg, time_utc, *, refraction: bool = 
         allowed = f"a shape that broadcasts with latitude {lat.shape} and longitude {lon.shape}"
         raise SkymodelInputError("time_utc", f"shape {t.shape}", allowed) from None
     if refraction:  # check before the work
-        _checked_array("pressure_hpa", pressure_hpa, 0.0, 1100.0, "hPa")
-        _checked_array("temperature_c", temperature_c, -90.0, 60.0, "degC")
+        check_array_range("pressure_hpa", pressure_hpa, 0.0, 1100.0, "hPa")
+        check_array_range("temperature_c", temperature_c, -90.0, 60.0, "degC")
 
     days = (t - _J2000_UT).astype("timedelta64[us]").astype(np.int64) / _US_PER_DAY
     ra, dec, distance, gast, eot = _sun_equatorial(days)
@@ -329,7 +330,7 @@ def solar_position(latitude_deg, longitude_deg, time_utc, *, refraction: bool = 
 
 def sun_angular_radius_deg(distance_au=1.0):
     """Angular radius (degrees) of the solar disc seen from ``distance_au`` (0.9-1.1 AU)."""
-    d = _checked_array("distance_au", distance_au, *DISTANCE_RANGE_AU, "AU")
+    d = check_array_range("distance_au", distance_au, *DISTANCE_RANGE_AU, "AU")
     return np.degrees(np.arcsin(SOLAR_RADIUS_KM / (ASTRONOMICAL_UNIT_KM * d)))[()]
 
 
@@ -360,7 +361,7 @@ def limb_darkening(wavelengths_nm, mu) -> np.ndarray:
     in [0, 1]. Returns shape ``mu.shape + (n_wavelengths,)``.
     """
     a = limb_darkening_coefficients(wavelengths_nm)
-    m = _checked_array("mu", mu, 0.0, 1.0, "(cosine of the heliocentric angle)")[..., None]
+    m = check_array_range("mu", mu, 0.0, 1.0, "(cosine of the heliocentric angle)")[..., None]
     p = a[:, 5] * np.ones_like(m)
     for k in range(4, -1, -1):
         p = a[:, k] + m * p
@@ -440,11 +441,11 @@ def solar_irradiance(wavelengths_nm=None, distance_au=1.0, bandwidth_nm=None) ->
     [lambda - w/2, lambda + w/2] divided by w (the trapezoid rule on the native points).
     """
     wl = as_wavelengths(wavelengths_nm)
-    d = _checked_array("distance_au", distance_au, *DISTANCE_RANGE_AU, "AU")
+    d = check_array_range("distance_au", distance_au, *DISTANCE_RANGE_AU, "AU")
     if bandwidth_nm is None:
         width = default_bandwidths(wl)
     else:
-        width = _checked_array("bandwidth_nm", bandwidth_nm, 0.0, MAX_BANDWIDTH_NM, "nm")
+        width = check_array_range("bandwidth_nm", bandwidth_nm, 0.0, MAX_BANDWIDTH_NM, "nm")
         try:
             width = np.broadcast_to(width, wl.shape).astype(float)
         except ValueError:

@@ -47,7 +47,7 @@ import numpy as np
 
 from skymodel.colorimetry import K_M, cmf_weights
 from skymodel.data import csv_columns
-from skymodel.errors import SkymodelInputError
+from skymodel.errors import SkymodelInputError, check_array_range
 from skymodel.sun import solar_irradiance
 from skymodel.wavelengths import as_wavelengths
 
@@ -80,18 +80,6 @@ def _rolo_table():
     keep = (wl >= FIT_RANGE_NM[0]) & (wl <= FIT_RANGE_NM[1]) & ~np.isin(wl, TELLURIC_BANDS_NM)
     names = ("a0", "a1", "a2", "a3", "b1", "b2", "b3", "d1", "d2", "d3")
     return wl[keep], np.stack([c[n][keep] for n in names], axis=1)
-
-
-def _check(name, value, low, high, unit):
-    allowed = f"finite numbers in [{low:g}, {high:g}] {unit}"
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise SkymodelInputError(name, value, allowed) from None
-    bad = ~np.isfinite(a) | (a < low) | (a > high)
-    if np.any(bad):
-        raise SkymodelInputError(name, float(np.atleast_1d(a)[np.atleast_1d(bad)][0]), allowed)
-    return a
 
 
 def allen_phase_law_v_mag(phase_angle_deg) -> np.ndarray:
@@ -135,11 +123,11 @@ def lunar_reflectance(wavelengths_nm=None, phase_angle_deg=7.0, sun_selenographi
     :data:`ROLO_MAX_PHASE_DEG` the value at 97 degrees is scaled by the Allen phase law
     (module docstring)."""
     wl = as_wavelengths(wavelengths_nm)
-    g = _check("phase_angle_deg", phase_angle_deg, 0.0, 180.0, "degrees")
+    g = check_array_range("phase_angle_deg", phase_angle_deg, 0.0, 180.0, "degrees")
     if sun_selenographic_longitude_deg is None:
         lon = g
     else:
-        lon = _check("sun_selenographic_longitude_deg", sun_selenographic_longitude_deg, -180.0, 180.0, "degrees")
+        lon = check_array_range("sun_selenographic_longitude_deg", sun_selenographic_longitude_deg, -180.0, 180.0, "degrees")
     try:
         g, lon = np.broadcast_arrays(g, lon)
     except ValueError:
@@ -163,8 +151,8 @@ def lunar_irradiance(wavelengths_nm=None, phase_angle_deg=7.0, *, sun_selenograp
     shape ``broadcast.shape + (n_wl,)``. The solar spectrum is band-averaged on the grid as
     :func:`skymodel.sun.solar_irradiance` does."""
     wl = as_wavelengths(wavelengths_nm)
-    d = _check("moon_distance_km", moon_distance_km, 300_000.0, 420_000.0, "km")
-    s = _check("sun_moon_distance_au", sun_moon_distance_au, 0.9, 1.1, "AU")
+    d = check_array_range("moon_distance_km", moon_distance_km, 300_000.0, 420_000.0, "km")
+    s = check_array_range("sun_moon_distance_au", sun_moon_distance_au, 0.9, 1.1, "AU")
     a = lunar_reflectance(wl, phase_angle_deg, sun_selenographic_longitude_deg)
     scale = (ROLO_DISC_SOLID_ANGLE_SR / math.pi) * (ROLO_MOON_DISTANCE_KM / d) ** 2 / s**2
     return a * np.asarray(scale)[..., None] * solar_irradiance(wl, 1.0)

@@ -53,12 +53,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from skymodel.data import csv_columns
-from skymodel.errors import SkymodelInputError
+from skymodel.errors import SkymodelInputError, check_array_range
 from skymodel.sun import (
     ASTRONOMICAL_UNIT_KM,
     STANDARD_PRESSURE_HPA,
     STANDARD_TEMPERATURE_C,
     as_utc_datetime64,
+    mean_sidereal_time_deg,
+    nutation,
     refraction_correction,
     solar_position,
 )
@@ -79,18 +81,6 @@ MEAN_DISC_SOLID_ANGLE_SR = 6.4177e-5
 _MEEUS_CSV = "sources/moon/meeus_table_47.csv"
 _J2000 = np.datetime64("2000-01-01T12:00:00", "us")
 _US_PER_DAY = 86_400e6
-
-
-def _checked(name, value, low, high, unit):
-    allowed = f"finite numbers in [{low:g}, {high:g}] {unit}"
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise SkymodelInputError(name, value, allowed) from None
-    bad = ~np.isfinite(a) | (a < low) | (a > high)
-    if np.any(bad):
-        raise SkymodelInputError(name, float(np.atleast_1d(a)[np.atleast_1d(bad)][0]), allowed)
-    return a
 
 
 # ----------------------------------------------------------------------------- time
@@ -142,19 +132,6 @@ def _meeus_tables():
     b = ~a
     mult = np.stack([c["D"], c["M"], c["Mp"], c["F"]], axis=1)
     return (mult[a], c["sine_1e6deg"][a], c["cosine_m"][a]), (mult[b], c["sine_1e6deg"][b])
-
-
-def _nutation(T):
-    """Nutation in longitude and obliquity (degrees) and the true obliquity (degrees)."""
-    omega = np.radians(125.04452 - 1934.136261 * T)
-    l_sun = np.radians(280.4665 + 36000.7698 * T)
-    l_moon = np.radians(218.3165 + 481267.8813 * T)
-    dpsi = (-17.20 * np.sin(omega) - 1.32 * np.sin(2 * l_sun) - 0.23 * np.sin(2 * l_moon)
-            + 0.21 * np.sin(2 * omega)) / 3600.0
-    deps = (9.20 * np.cos(omega) + 0.57 * np.cos(2 * l_sun) + 0.10 * np.cos(2 * l_moon)
-            - 0.09 * np.cos(2 * omega)) / 3600.0
-    eps0 = 23.0 + 26.0 / 60.0 + (21.448 - T * (46.8150 + T * (0.00059 - 0.001813 * T))) / 3600.0
-    return dpsi, deps, eps0 + deps
 
 
 def geocentric_ecliptic(days_tt) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -249,9 +226,9 @@ def moon_position(latitude_deg, longitude_deg, time_utc, *, altitude_m=0.0, refr
 
     Raises :class:`SkymodelInputError` naming the parameter for bad input, before any work.
     """
-    lat = _checked("latitude_deg", latitude_deg, -90.0, 90.0, "degrees")
-    lon = _checked("longitude_deg", longitude_deg, -180.0, 180.0, "degrees")
-    alt = _checked("altitude_m", altitude_m, *ALTITUDE_RANGE_M, "m")
+    lat = check_array_range("latitude_deg", latitude_deg, -90.0, 90.0, "degrees")
+    lon = check_array_range("longitude_deg", longitude_deg, -180.0, 180.0, "degrees")
+    alt = check_array_range("altitude_m", altitude_m, *ALTITUDE_RANGE_M, "m")
     t = as_utc_datetime64(time_utc)
     try:
         lat, lon, alt, t = np.broadcast_arrays(lat, lon, alt, t)
@@ -259,24 +236,22 @@ def moon_position(latitude_deg, longitude_deg, time_utc, *, altitude_m=0.0, refr
         raise SkymodelInputError("time_utc", f"shape {t.shape}",
                                  f"a shape that broadcasts with latitude {lat.shape} and longitude {lon.shape}") from None
     if refraction:
-        _checked("pressure_hpa", pressure_hpa, 0.0, 1100.0, "hPa")
-        _checked("temperature_c", temperature_c, -90.0, 60.0, "degC")
+        check_array_range("pressure_hpa", pressure_hpa, 0.0, 1100.0, "hPa")
+        check_array_range("temperature_c", temperature_c, -90.0, 60.0, "degC")
 
     days_ut = _days_since_j2000(t)
     year = 2000.0 + days_ut / 365.25
     days_tt = days_ut + delta_t_seconds(year) / 86400.0
     lam, beta, dist = geocentric_ecliptic(days_tt)
     T = days_tt / 36525.0
-    dpsi, _, eps = _nutation(T)
+    dpsi, _, eps = nutation(T)
     lam_app = (lam + dpsi) % 360.0
     lr, br, er = np.radians(lam_app), np.radians(beta), np.radians(eps)
     ra = np.degrees(np.arctan2(np.sin(lr) * np.cos(er) - np.tan(br) * np.sin(er), np.cos(lr))) % 360.0
     dec = np.degrees(np.arcsin(np.sin(br) * np.cos(er) + np.cos(br) * np.sin(er) * np.sin(lr)))
 
     # sidereal time (UT) and the observer's geocentric position, equatorial frame of date
-    Tu = days_ut / 36525.0
-    gmst = 280.46061837 + 360.98564736629 * days_ut + Tu * Tu * (0.000387933 - Tu / 38710000.0)
-    lst = np.radians((gmst + dpsi * np.cos(er) + lon) % 360.0)
+    lst = np.radians((mean_sidereal_time_deg(days_ut) + dpsi * np.cos(er) + lon) % 360.0)
     phi = np.radians(lat)
     a = EARTH_EQUATORIAL_RADIUS_KM
     e2 = EARTH_FLATTENING * (2.0 - EARTH_FLATTENING)
@@ -346,5 +321,5 @@ def moon_position(latitude_deg, longitude_deg, time_utc, *, altitude_m=0.0, refr
 
 def disc_solid_angle_sr(distance_km) -> np.ndarray:
     """Solid angle (sr) of the lunar disc seen from ``distance_km`` (300000-420000 km)."""
-    d = _checked("distance_km", distance_km, 300_000.0, 420_000.0, "km")
+    d = check_array_range("distance_km", distance_km, 300_000.0, 420_000.0, "km")
     return (2.0 * math.pi * (1.0 - np.cos(np.arcsin(MOON_RADIUS_KM / d))))[()]

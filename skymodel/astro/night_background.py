@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from skymodel.errors import SkymodelInputError
+from skymodel.errors import SkymodelInputError, check_array_range
 from skymodel.wavelengths import as_wavelengths
 
 #: Darkest zenith sky at La Palma, mag/arcsec^2 (Benn & Ellison 1998).
@@ -45,18 +45,6 @@ ARCSEC2_PER_SR = (180.0 / np.pi * 3600.0) ** 2
 KS91_EXTINCTION_V = 0.172
 #: Zenith V accepted (mag/arcsec^2): from a bright suburban sky to below the darkest sites.
 ZENITH_V_RANGE = (16.0, 23.0)
-
-
-def _checked(name, value, low, high, unit):
-    allowed = f"finite numbers in [{low:g}, {high:g}] {unit}"
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise SkymodelInputError(name, value, allowed) from None
-    bad = ~np.isfinite(a) | (a < low) | (a > high)
-    if np.any(bad):
-        raise SkymodelInputError(name, float(np.atleast_1d(a)[np.atleast_1d(bad)][0]), allowed)
-    return a
 
 
 def surface_brightness_to_radiance(mag_arcsec2, band: str = "V"):
@@ -79,7 +67,7 @@ def dark_sky_zenith_radiance(wavelengths_nm=None, zenith_v_mag: float = DARK_SKY
     """Spectral radiance (W m^-2 sr^-1 nm^-1) of the moonless zenith sky at a dark site, as
     measured from the ground (module docstring), on the wavelength grid (380-780 nm)."""
     wl = as_wavelengths(wavelengths_nm)
-    v = float(_checked("zenith_v_mag", zenith_v_mag, *ZENITH_V_RANGE, "mag/arcsec^2"))
+    v = float(check_array_range("zenith_v_mag", zenith_v_mag, *ZENITH_V_RANGE, "mag/arcsec^2"))
     bands = ("U", "B", "V", "R", "I")
     shift = v - DARK_SKY_ZENITH_MAG_ARCSEC2["V"]
     x = np.array([BAND_EFFECTIVE_WAVELENGTH_NM[b] for b in bands])
@@ -89,7 +77,7 @@ def dark_sky_zenith_radiance(wavelengths_nm=None, zenith_v_mag: float = DARK_SKY
 
 def van_rhijn_factor(zenith_deg) -> np.ndarray:
     """X = (1 - 0.96 sin^2 Z)^(-1/2) (Krisciunas & Schaefer 1991 eq. 3): 1 at the zenith, 5 at the horizon."""
-    z = np.radians(_checked("zenith_deg", zenith_deg, 0.0, 90.0, "degrees"))
+    z = np.radians(check_array_range("zenith_deg", zenith_deg, 0.0, 90.0, "degrees"))
     return (1.0 - 0.96 * np.sin(z) ** 2) ** -0.5
 
 
@@ -109,7 +97,7 @@ def dark_sky_radiance(wavelengths_nm=None, zenith_deg=0.0, *, zenith_v_mag: floa
     x = van_rhijn_factor(zenith_deg)[..., None]
     base = dark_sky_zenith_radiance(wl, zenith_v_mag)
     if transmittance_ratio is None:
-        k = float(_checked("extinction_mag_per_airmass", extinction_mag_per_airmass, 0.0, 2.0, "mag"))
+        k = float(check_array_range("extinction_mag_per_airmass", extinction_mag_per_airmass, 0.0, 2.0, "mag"))
         ratio = 10.0 ** (-0.4 * k * (x - 1.0))
     else:
         ratio = np.asarray(transmittance_ratio, dtype=float)

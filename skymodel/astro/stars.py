@@ -50,11 +50,12 @@ import numpy as np
 
 from skymodel.astro.lunar_irradiance import V_EFFECTIVE_WAVELENGTH_NM, V_ZERO_POINT_W_M2_NM
 from skymodel.data import csv_columns
-from skymodel.errors import SkymodelInputError
+from skymodel.errors import SkymodelInputError, check_array_range
 from skymodel.sun import (
     STANDARD_PRESSURE_HPA,
     STANDARD_TEMPERATURE_C,
     as_utc_datetime64,
+    nutation,
     refraction_correction,
     solar_position,
 )
@@ -104,18 +105,6 @@ def catalogue() -> StarCatalogue:
                          v_mag=c["v_mag"], b_v=bv)
 
 
-def _checked(name, value, low, high, unit):
-    allowed = f"finite numbers in [{low:g}, {high:g}] {unit}"
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise SkymodelInputError(name, value, allowed) from None
-    bad = ~np.isfinite(a) | (a < low) | (a > high)
-    if np.any(bad):
-        raise SkymodelInputError(name, float(np.atleast_1d(a)[np.atleast_1d(bad)][0]), allowed)
-    return a
-
-
 # ----------------------------------------------------------------------------- place
 
 
@@ -152,8 +141,8 @@ def star_positions(latitude_deg: float, longitude_deg: float, time_utc, ra_deg=N
     """Apparent place of stars (J2000 ``ra_deg``, ``dec_deg``; default the whole catalogue)
     for one observer (latitude -90..90, longitude -180..180 degrees) at one time (as
     :func:`skymodel.sun.solar_position` accepts, years 1900-2100)."""
-    lat = float(_checked("latitude_deg", latitude_deg, -90.0, 90.0, "degrees"))
-    lon = float(_checked("longitude_deg", longitude_deg, -180.0, 180.0, "degrees"))
+    lat = float(check_array_range("latitude_deg", latitude_deg, -90.0, 90.0, "degrees"))
+    lon = float(check_array_range("longitude_deg", longitude_deg, -180.0, 180.0, "degrees"))
     t = as_utc_datetime64(time_utc)
     if t.ndim != 0:
         raise SkymodelInputError("time_utc", f"an array of shape {t.shape}", "one time")
@@ -161,13 +150,13 @@ def star_positions(latitude_deg: float, longitude_deg: float, time_utc, ra_deg=N
         cat = catalogue()
         ra, dec = cat.ra_deg, cat.dec_deg
     else:
-        ra = np.atleast_1d(_checked("ra_deg", ra_deg, 0.0, 360.0, "degrees"))
-        dec = np.atleast_1d(_checked("dec_deg", dec_deg, -90.0, 90.0, "degrees"))
+        ra = np.atleast_1d(check_array_range("ra_deg", ra_deg, 0.0, 360.0, "degrees"))
+        dec = np.atleast_1d(check_array_range("dec_deg", dec_deg, -90.0, 90.0, "degrees"))
         if ra.shape != dec.shape:
             raise SkymodelInputError("dec_deg", f"shape {dec.shape}", f"the shape of ra_deg {ra.shape}")
     if refraction:
-        _checked("pressure_hpa", pressure_hpa, 0.0, 1100.0, "hPa")
-        _checked("temperature_c", temperature_c, -90.0, 60.0, "degC")
+        check_array_range("pressure_hpa", pressure_hpa, 0.0, 1100.0, "hPa")
+        check_array_range("temperature_c", temperature_c, -90.0, 60.0, "degC")
 
     days = float((t - _J2000).astype("timedelta64[us]").astype(np.int64) / _US_PER_DAY)
     T = days / 36525.0
@@ -177,20 +166,13 @@ def star_positions(latitude_deg: float, longitude_deg: float, time_utc, ra_deg=N
     z = (2306.2181 * T + 1.09468 * T**2 + 0.018203 * T**3) * as2r
     theta = (2004.3109 * T - 0.42665 * T**2 - 0.041833 * T**3) * as2r
     precession = _rot(2, -z) @ _rot(1, theta) @ _rot(2, -zeta)
-    # nutation (Meeus ch. 22, four terms) and the obliquity
-    omega = math.radians(125.04452 - 1934.136261 * T)
-    l_sun = math.radians(280.4665 + 36000.7698 * T)
-    l_moon = math.radians(218.3165 + 481267.8813 * T)
-    dpsi = (-17.20 * math.sin(omega) - 1.32 * math.sin(2 * l_sun) - 0.23 * math.sin(2 * l_moon)
-            + 0.21 * math.sin(2 * omega)) * as2r
-    deps = (9.20 * math.cos(omega) + 0.57 * math.cos(2 * l_sun) + 0.10 * math.cos(2 * l_moon)
-            - 0.09 * math.cos(2 * omega)) * as2r
-    eps0 = math.radians(23.0 + 26.0 / 60.0 + (21.448 - T * (46.8150 + T * (0.00059 - 0.001813 * T))) / 3600.0)
-    eps = eps0 + deps
-    nutation = _rot(0, -eps) @ _rot(2, -dpsi) @ _rot(0, eps0)
+    # nutation (Meeus ch. 22, four terms) and the obliquity, radians
+    dpsi, deps, eps = (math.radians(float(v)) for v in nutation(T))
+    eps0 = eps - deps
+    nutation_matrix = _rot(0, -eps) @ _rot(2, -dpsi) @ _rot(0, eps0)
     a, d = np.radians(ra), np.radians(dec)
     u = np.stack([np.cos(d) * np.cos(a), np.cos(d) * np.sin(a), np.sin(d)], axis=-1)
-    u = u @ (nutation @ precession).T
+    u = u @ (nutation_matrix @ precession).T
     # annual aberration: the Earth's velocity points 90 degrees behind the sun's longitude
     sp = solar_position(0.0, 0.0, t)
     sa, sd = math.radians(float(sp.right_ascension_deg)), math.radians(float(sp.declination_deg))
@@ -225,7 +207,7 @@ def ballesteros_temperature_k(b_v) -> np.ndarray:
     """Blackbody temperature (K) of a star of colour B-V (Ballesteros 2012, EPL 97, 34008, eq. 14),
     for B-V in [-0.5, 4.0] (the catalogue spans -0.31 to 3.33; the reddest, carbon stars and
     Miras with B-V > 2, are far from blackbodies, but a handful of faint points)."""
-    bv = _checked("b_v", b_v, -0.5, 4.0, "magnitudes")
+    bv = check_array_range("b_v", b_v, -0.5, 4.0, "magnitudes")
     return (4600.0 * (1.0 / (0.92 * bv + 1.7) + 1.0 / (0.92 * bv + 0.62)))[()]
 
 
@@ -246,7 +228,7 @@ def star_irradiance(wavelengths_nm=None, v_mag=None, b_v=None) -> np.ndarray:
         cat = catalogue()
         v, bv = cat.v_mag, cat.b_v
     else:
-        v = _checked("v_mag", v_mag, -2.0, 20.0, "magnitudes")
+        v = check_array_range("v_mag", v_mag, -2.0, 20.0, "magnitudes")
         bv = np.asarray(b_v, dtype=float)
     t = ballesteros_temperature_k(bv)
     shape = planck_radiance(wl, t) / planck_radiance(np.array([V_EFFECTIVE_WAVELENGTH_NM]), t)
@@ -282,14 +264,14 @@ def splat_stars(image, elevation_deg, azimuth_deg, irradiance, *, center_azimuth
     if img.ndim != 3 or img.shape[1] != 2 * img.shape[0]:
         raise SkymodelInputError("image", f"an array of shape {img.shape}", "(H, 2H, n_wavelengths)")
     h, w, n_wl = img.shape
-    el = np.atleast_1d(_checked("elevation_deg", elevation_deg, -90.0, 90.0, "degrees"))
-    az = np.atleast_1d(_checked("azimuth_deg", azimuth_deg, -360.0, 720.0, "degrees"))
+    el = np.atleast_1d(check_array_range("elevation_deg", elevation_deg, -90.0, 90.0, "degrees"))
+    az = np.atleast_1d(check_array_range("azimuth_deg", azimuth_deg, -360.0, 720.0, "degrees"))
     e = np.asarray(irradiance, dtype=float)
     if e.shape != (el.size, n_wl) or az.shape != el.shape:
         raise SkymodelInputError("irradiance", f"shape {e.shape}", f"({el.size}, {n_wl}) matching the positions and the image")
     if not np.all(np.isfinite(e)) or np.any(e < 0):
         raise SkymodelInputError("irradiance", "negative or non-finite values", "finite values >= 0")
-    c = float(_checked("center_azimuth_deg", center_azimuth_deg, -360.0, 360.0, "degrees"))
+    c = float(check_array_range("center_azimuth_deg", center_azimuth_deg, -360.0, 360.0, "degrees"))
     keep = np.ones(el.shape, bool) if below_horizon else el >= 0.0
     el, az, e = el[keep], az[keep], e[keep]
     zen = 90.0 - el

@@ -458,6 +458,26 @@ def _rotate(d, cos_t, rng):
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
+def _sample_scattering(med: _Medium, sig_sc, sig_s, sig_t, wl_idx, directions, rng):
+    """At collisions: choose each one's scatterer by its share of the scattering coefficient
+    (``sig_sc`` (n_species, n), ``sig_s``, ``sig_t`` per metre) and sample the new direction
+    from its phase function. Returns the weight factor (``sig_s / sig_t`` times the sampled
+    aerosol phase table's mass) and the new unit directions (n, 3)."""
+    cum = np.cumsum(sig_sc, axis=0)
+    comp_i = np.minimum((rng.random(wl_idx.size) * sig_s[None, :] >= cum).sum(axis=0), med.n_regime)
+    cos_t = np.empty(wl_idx.size)
+    wt = sig_s / sig_t
+    m = comp_i == 0
+    if np.any(m):
+        cos_t[m] = med.sample_rayleigh_cos(wl_idx[m], rng)
+    for rg in range(med.n_regime):
+        m = comp_i == rg + 1
+        if np.any(m):
+            cos_t[m] = med.sample_aerosol_cos(rg, wl_idx[m], rng)
+            wt[m] *= med.phase_mass[rg, wl_idx[m]]
+    return wt, _rotate(directions, cos_t, rng)
+
+
 def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng):
     """Trace one batch of paths; returns each path's summed contribution (W m^-2 sr^-1 nm^-1)."""
     n = dirs.shape[0]
@@ -477,7 +497,6 @@ def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng):
     idx = np.flatnonzero(alive)
     P, D, J, Wl = p[idx], dirs[idx].copy(), band[idx], w[idx]
     beta = np.ones(idx.size)
-    n_reg = med.n_regime
     for bounce in range(max_bounces):
         if idx.size == 0:
             break
@@ -499,21 +518,8 @@ def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng):
             tau, _ = med.optical_depth_to_top(Pc, sun, wc)
             contrib[idx[ci]] += f * np.exp(-tau) * med.e_sun[wc]
             # choose the scatterer and the new direction
-            cum = np.cumsum(sig_sc, axis=0)
-            comp_i = (rng.random(ci.size) * sig_s[None, :] >= cum).sum(axis=0)
-            comp_i = np.minimum(comp_i, n_reg)
-            cos_t = np.empty(ci.size)
-            wt = sig_s / sig_t
-            m = comp_i == 0
-            if np.any(m):
-                cos_t[m] = med.sample_rayleigh_cos(wc[m], rng)
-            for rg in range(n_reg):
-                m = comp_i == rg + 1
-                if np.any(m):
-                    cos_t[m] = med.sample_aerosol_cos(rg, wc[m], rng)
-                    wt[m] *= med.phase_mass[rg, wc[m]]
+            wt, nxt_D[ci] = _sample_scattering(med, sig_sc, sig_s, sig_t, wc, Dc, rng)
             beta[ci] *= wt
-            nxt_D[ci] = _rotate(Dc, cos_t, rng)
         # ---- reflection by the ground
         gi = np.flatnonzero(ev == _GROUND)
         if gi.size:
@@ -792,7 +798,6 @@ def _scatter(med, P, D, Wl, ev, beta, J, rng):
     """New directions at the events (air collisions and ground hits) and the weights'
     update (single-scattering albedo and phase mass; ground albedo). Returns the new
     directions; ``beta`` and ``J`` are updated in place."""
-    n_reg = med.n_regime
     nxt = D.copy()
     ci = np.flatnonzero(ev == _COLLIDE)
     if ci.size:
@@ -802,20 +807,8 @@ def _scatter(med, P, D, Wl, ev, beta, J, rng):
         sig_sc = comp[:-1]
         sig_s = sig_sc.sum(axis=0)
         sig_t = sig_s + comp[-1]
-        cum = np.cumsum(sig_sc, axis=0)
-        comp_i = np.minimum((rng.random(ci.size) * sig_s[None, :] >= cum).sum(axis=0), n_reg)
-        cos_t = np.empty(ci.size)
-        wt = sig_s / sig_t
-        m = comp_i == 0
-        if np.any(m):
-            cos_t[m] = med.sample_rayleigh_cos(wc[m], rng)
-        for rg in range(n_reg):
-            m = comp_i == rg + 1
-            if np.any(m):
-                cos_t[m] = med.sample_aerosol_cos(rg, wc[m], rng)
-                wt[m] *= med.phase_mass[rg, wc[m]]
+        wt, nxt[ci] = _sample_scattering(med, sig_sc, sig_s, sig_t, wc, D[ci], rng)
         beta[ci] *= wt
-        nxt[ci] = _rotate(D[ci], cos_t, rng)
     gi = np.flatnonzero(ev == _GROUND)
     if gi.size:
         Pg = P[gi]
