@@ -115,8 +115,12 @@ def test_errors_of_an_image_against_itself_are_zero():
     ref = rng.uniform(0.01, 0.5, (6, 5, wl.size))
     w = rng.uniform(0.1, 1.0, (6, 5))
     e = accuracy.errors(ref, wl, ref, wl, w)
-    assert all(e[k] == 0.0 for k in ("radiance_rel_mean", "radiance_rel_rms", "radiance_rel_max", "de2000_mean",
-                                     "de2000_p95"))
+    # the radiance is compared through the band matrix, the identity here: exactly zero
+    assert [e[k] for k in ("radiance_rel_mean", "radiance_rel_rms", "radiance_rel_max")] == [0.0, 0.0, 0.0]
+    # the colour difference runs the two images through the tone map and Lab separately;
+    # BLAS may round those two passes differently in the last bit (two fresh-clone CI
+    # runs saw a non-zero value here that no rerun reproduced), so round-off, not zero
+    assert e["de2000_mean"] <= 1e-9 and e["de2000_p95"] <= 1e-9, (e["de2000_mean"], e["de2000_p95"])
     # a uniform 1% excess is a 1% error at every point
     e = accuracy.errors(ref * 1.01, wl, ref, wl, w)
     assert e["radiance_rel_mean"] == pytest.approx(0.01) and e["radiance_rel_max"] == pytest.approx(0.01)
