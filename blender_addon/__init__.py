@@ -12,9 +12,9 @@ computations) can be used and tested without Blender.
 
 
 def _modules():
-    from . import animation, ops, props, ui
+    from . import animation, live, ops, props, ui
 
-    return (props, ops, animation, ui)
+    return (props, ops, animation, live, ui)
 
 
 def register():

@@ -25,8 +25,9 @@ What is built and why
     **Animate Day** keyframes a day in *local* time: the frames from ``time_from`` to
     ``time_to`` every ``every`` on ``date`` in ``timezone`` (IANA name, DST applied; the
     core's :func:`skymodel.render.timeline.day_frames`), as the UTC date and time the
-    settings hold (constant interpolation, one key per frame), and sets the scene's frame
-    range. Then Bake Time of Day.
+    settings hold (constant interpolation, one key per frame; the panel's *Time Zone* is
+    set to UTC, so the keyed fields read as UTC, and an hour repeated at a daylight-saving
+    change stays two distinct keys), and sets the scene's frame range. Then Bake Time of Day.
 
 Where the images go
     ``folder`` when given; else ``//skymodel_sky/bake-<id>/`` beside the saved .blend
@@ -439,6 +440,7 @@ def animate_day(scene, settings, date, time_from, time_to, every, timezone=None)
     if any(f.time_utc[17:19] != "00" for f in frames):
         raise SkymodelInputError("every", every, "a step of whole minutes (the settings hold minutes)")
     settings.sun_source = "TIME"
+    settings.timezone = "UTC"  # the keys hold UTC (every instant exists once in UTC, across DST changes too)
     for k, f in enumerate(frames, start=1):
         t = f.time_utc
         settings.year, settings.month, settings.day = int(t[:4]), int(t[5:7]), int(t[8:10])
@@ -518,6 +520,9 @@ class SKYMODEL_OT_animate_day(bpy.types.Operator):
         return context.scene is not None and context.scene.world is not None
 
     def invoke(self, context, event):
+        zone = context.scene.world.skymodel.timezone.strip()
+        if zone:
+            self.timezone = zone
         return context.window_manager.invoke_props_dialog(self)
 
     def execute(self, context):

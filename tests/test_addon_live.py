@@ -1,0 +1,195 @@
+"""Live update of the World panel (issue #23): debounced background builds, a preview
+while the settings move and the chosen quality once they stop, stale results never shown.
+
+Headless bpy has no event loop, so the timer is run by calling ``live.tick(now=...)``
+with a fake clock; the builds run in their real background threads (waited for with
+``job.wait``). Tiny images (preview 16 px wide, final 32 px) and small preview tables."""
+
+import math
+import os
+import tempfile
+
+import pytest
+
+os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="skymodel-blender-user-"))
+os.environ.setdefault("SKYMODEL_CACHE_DIR", tempfile.mkdtemp(prefix="skymodel-cache-"))
+
+bpy = pytest.importorskip("bpy")
+import numpy as np  # noqa: E402
+
+pytestmark = pytest.mark.blender
+
+
+class FakeClock:
+    def __init__(self):
+        self.t = 1000.0
+
+    def __call__(self):
+        return self.t
+
+
+@pytest.fixture
+def small_preview(monkeypatch):
+    from dataclasses import replace
+
+    from skymodel.render.quality import QUALITIES
+
+    q = QUALITIES["preview"]
+    small = replace(q.settings, table_altitudes=10, table_mu=12, table_phi=6, table_mus=10, table_steps=16,
+                    sun_table_altitudes=24, sun_table_x=32, sun_table_steps=32, grid_zenith=16,
+                    grid_zenith_ground=6, grid_azimuth=9, max_orders=4)
+    monkeypatch.setitem(QUALITIES, "preview", replace(q, settings=small))
+
+
+@pytest.fixture
+def live_scene(new_sky_scene, small_preview, monkeypatch, tmp_path):
+    """A scene whose panel asks for preview quality at 32 px, with the live preview at 16 px."""
+    from blender_addon import live
+
+    monkeypatch.setenv("SKYMODEL_CACHE_DIR", str(tmp_path / "cache"))
+    clock = FakeClock()
+    monkeypatch.setattr(live, "clock", clock)
+    monkeypatch.setattr(live, "PREVIEW_WIDTH", 16)
+    live.reset()
+    sc = new_sky_scene(image_width=32)
+    yield sc, clock, live
+    live.reset()
+
+
+def _run_job(live):
+    job = live.STATE.job
+    assert job is not None
+    assert job.wait(300), "the live build did not finish"
+    return job
+
+
+def _image(world):
+    img = next(n.image for n in world.node_tree.nodes if n.bl_idname == "ShaderNodeTexEnvironment")
+    w, h = img.size
+    px = np.empty(w * h * 4, np.float32)
+    img.pixels.foreach_get(px)
+    return px.reshape(h, w, 4)[::-1, :, :3]
+
+
+def _lamp(sc):
+    return bpy.data.objects["Skymodel Sun"]
+
+
+def test_quick_changes_give_one_preview_then_the_chosen_quality_matching_the_core(live_scene, tmp_path):
+    from blender_addon import physics
+
+    sc, clock, live = live_scene
+    s = sc.world.skymodel
+    s.live_update = True
+    for el in (10.0, 12.0, 14.0):  # a drag: three changes within the debounce time
+        clock.t += 0.05
+        s.sun_elevation = math.radians(el)
+    assert live.STATE.generation == 4 and live.STATE.job is None
+    assert live.tick() == live.POLL_S and live.STATE.job is None  # still within the debounce
+    clock.t += live.DEBOUNCE_S
+    live.tick()
+    job = _run_job(live)
+    assert (job.stage, job.generation) == ("preview", 4)
+    clock.t += 0.1
+    live.tick()  # applies the preview
+    assert live.STATE.shown == (4, "preview") and live.STATE.builds["preview"] == 1
+    assert tuple(bpy.data.images["Skymodel Sky"].size) == (16, 8)
+    assert abs(_lamp(sc)["skymodel_sun_elevation_deg"] - 14.0) < 1e-4
+    assert "Live update: preview" in s.last_info
+    live.tick()
+    assert live.STATE.job is None  # the chosen quality waits until the settings have been still for SETTLE_S
+    clock.t += live.SETTLE_S
+    live.tick()
+    job = _run_job(live)
+    assert (job.stage, job.generation) == ("final", 4)
+    live.tick()
+    assert live.STATE.shown == (4, "final") and live.STATE.builds == {"preview": 1, "final": 1, "cancelled": 0,
+                                                                      "dropped": 0}
+    assert live.tick() is None  # idle: the timer ends
+    # the scene shows the core's image of the final parameters (rendered afresh in another cache)
+    sky = physics.resolve(s.to_params())
+    rgb, res = physics.render_environment(sky, tmp_path / "other-cache")
+    img = _image(sc.world)
+    assert img.shape == rgb.shape == (16, 32, 3)
+    np.testing.assert_allclose(img, rgb, rtol=1e-6, atol=0)
+    assert _lamp(sc).data.energy == pytest.approx(res.sun_strength, rel=1e-6)
+    assert sc.view_settings.exposure == pytest.approx(res.exposure, abs=1e-5)
+
+
+def test_a_change_during_a_build_supersedes_it_and_older_skies_are_never_shown(live_scene):
+    sc, clock, live = live_scene
+    s = sc.world.skymodel
+    s.live_update = True
+    s.sun_elevation = math.radians(20.0)
+    clock.t += live.DEBOUNCE_S
+    live.tick()
+    first = live.STATE.job
+    assert first is not None and first.generation == 2
+    s.sun_elevation = math.radians(30.0)  # while it runs: the running build is cancelled
+    assert first.cancelled.is_set() and live.STATE.builds["cancelled"] == 1
+    _run_job(live)
+    live.tick()  # its result (if it got that far) is dropped, nothing is shown
+    assert live.STATE.shown is None and "Skymodel Sun" not in bpy.data.objects
+    assert live.STATE.job is None
+    clock.t += live.DEBOUNCE_S
+    live.tick()
+    job = _run_job(live)
+    assert job.generation == 3
+    # another change lands after this build finished but before the timer applied it: dropped too
+    s.sun_elevation = math.radians(40.0)
+    live.tick()
+    assert live.STATE.shown is None and live.STATE.builds["dropped"] == 2
+    for _ in range(3):  # preview then final, each for 40 degrees only
+        clock.t += live.SETTLE_S
+        live.tick()
+        if live.STATE.job is not None:
+            _run_job(live)
+            live.tick()
+            assert abs(_lamp(sc)["skymodel_sun_elevation_deg"] - 40.0) < 1e-4
+    assert live.STATE.shown == (4, "final")
+
+
+def test_bad_input_is_named_and_leaves_the_scene_as_it_was(live_scene):
+    sc, clock, live = live_scene
+    s = sc.world.skymodel
+    s.live_update = True
+    clock.t += live.DEBOUNCE_S
+    live.tick()
+    _run_job(live)
+    live.tick()  # a sky is shown (preview == final here? no: 16 then 32 px)
+    names = sorted(o.name for o in bpy.data.objects)
+    exposure = sc.view_settings.exposure
+    info = s.last_info
+    s.sun_source = "TIME"
+    s.location = "zaragoza"
+    s.year, s.month, s.day, s.hour, s.minute = 2026, 3, 29, 2, 30
+    s.timezone = "Europe/Madrid"  # 02:30 does not exist there that night
+    clock.t += live.DEBOUNCE_S
+    assert live.tick() is None
+    assert "time_utc" in live.STATE.error and "skipped" in live.STATE.error and "daylight saving" in live.STATE.error
+    s.timezone = "Europe/Zaragoza"
+    clock.t += live.DEBOUNCE_S
+    live.tick()
+    assert "timezone" in live.STATE.error and "IANA" in live.STATE.error
+    assert sorted(o.name for o in bpy.data.objects) == names
+    assert sc.view_settings.exposure == exposure and s.last_info == info
+
+
+def test_live_update_off_builds_nothing_and_switching_off_cancels(live_scene):
+    sc, clock, live = live_scene
+    s = sc.world.skymodel
+    s.sun_elevation = math.radians(25.0)
+    assert live.STATE.generation == 0 and live.STATE.pending is None
+    s.live_update = True
+    clock.t += live.DEBOUNCE_S
+    live.tick()
+    job = live.STATE.job
+    s.live_update = False
+    assert job.cancelled.is_set() and live.STATE.pending is None
+    job.wait(300)
+    assert live.tick() is None and live.STATE.shown is None
+    s.mode = "VOLUMETRIC"
+    s.live_update = True
+    clock.t += live.DEBOUNCE_S
+    assert live.tick() is None and live.STATE.job is None
+    assert "Environment mode" in live.STATE.status
