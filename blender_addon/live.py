@@ -16,10 +16,12 @@ in a thread, the scene changed on the main thread in one transaction):
    still for :data:`SETTLE_S` s, a build at the panel's quality and width (skipped when
    the preview already is that).
 
-A change while a build runs supersedes it: the build is cancelled (its thread stops at
-its next progress step; the pixel march itself has none, so at most one march runs on
-after the change) and its result is dropped; the next build starts when that thread has
-ended (one build at a time on the machine's cores). A result is applied only when it
+A change while a build runs supersedes it: the build is cancelled and its result is
+dropped. Its thread stops at its next progress step, but the pixel march has none (a warm
+``final`` 1024x512 marches for ~18 s), so the next build does not wait for it: it starts
+beside the cancelled one, which runs on without touching the scene or writing a file (it
+stops at its next step, before writing); at most :data:`MAX_CANCELLED_RUNNING` cancelled
+threads run at a time (then the next build waits). A result is applied only when it
 was computed from the settings as they are now (its ``generation`` is the current one),
 so an older sky is never shown after a newer one. Applying is what Build Sky does: the
 world image, the sun lamp (and the moon's), the exposure; all or nothing, so a failed
@@ -53,6 +55,9 @@ DEBOUNCE_S = 0.25
 SETTLE_S = 1.0
 #: Timer interval while anything is pending or running.
 POLL_S = 0.1
+#: Cancelled builds whose threads may still run while the next one starts (each ends at its
+#: next progress step; the march has none): with 1, at most two build threads run.
+MAX_CANCELLED_RUNNING = 1
 #: Quality and largest image width of the preview stage.
 PREVIEW_QUALITY = "preview"
 
@@ -80,6 +85,7 @@ class LiveState:
     world: str = ""
     pending: str | None = None  #: the next stage to build: "preview", "final" or None (idle)
     job: object = None  #: the LiveJob in flight
+    cancelled_jobs: list = field(default_factory=list)  #: cancelled LiveJobs whose threads still run
     shown: tuple | None = None  #: (generation, stage) the scene shows
     error: str | None = None  #: the last failure (shown in the panel until the next change)
     status: str = ""  #: one line for the panel
@@ -94,9 +100,9 @@ STATE = LiveState()
 def reset():
     """Forget everything (a new file, unregister); a running thread is cancelled."""
     global STATE
-    job = STATE.job
-    if job is not None and job.running:
-        job.cancel()
+    for job in [STATE.job, *STATE.cancelled_jobs]:
+        if job is not None and job.running:
+            job.cancel()
     _remove_timer()
     STATE = LiveState()
 
@@ -158,10 +164,7 @@ def on_change(settings, context=None):
         STATE.scene = scene.name if scene is not None else ""
         STATE.pending = "preview"
         STATE.error = None
-        job = STATE.job
-        if job is not None and job.running and job.generation != STATE.generation and not job.cancelled.is_set():
-            job.cancel()
-            STATE.builds["cancelled"] += 1
+        _supersede()
         STATE.status = "waiting for the settings to settle"
         _ensure_timer()
     except Exception as ex:  # an update callback must not break the UI
@@ -176,9 +179,20 @@ def on_toggle(settings, context=None):
         stop()
 
 
+def _supersede():
+    """A running build of older settings: cancel it and set it aside (its thread ends by itself)."""
+    job = STATE.job
+    if job is not None and job.running and job.generation != STATE.generation:
+        if not job.cancelled.is_set():
+            job.cancel()
+            STATE.builds["cancelled"] += 1
+        STATE.cancelled_jobs.append(job)
+        STATE.job = None
+
+
 def stop(wait: float | None = None):
-    """Cancel the live build (if any) and forget what was pending; ``wait`` seconds for its
-    thread to end (None: do not wait). Returns True when no live thread runs any more."""
+    """Cancel the live builds (if any) and forget what was pending; ``wait`` seconds for
+    their threads to end (None: do not wait). Returns True when no live thread runs any more."""
     STATE.pending = None
     STATE.status = ""
     job = STATE.job
@@ -186,14 +200,18 @@ def stop(wait: float | None = None):
         if not job.cancelled.is_set():
             job.cancel()
             STATE.builds["cancelled"] += 1
-        if wait:
-            job.wait(wait)
+        STATE.cancelled_jobs.append(job)
+        STATE.job = None
+    if wait:
+        deadline = time.monotonic() + wait
+        for j in STATE.cancelled_jobs:
+            j.wait(max(0.0, deadline - time.monotonic()))
     return not running()
 
 
 def running() -> bool:
-    """Whether a live build's thread is computing."""
-    return STATE.job is not None and STATE.job.running
+    """Whether a live build's thread (current or cancelled) is still computing."""
+    return any(j is not None and j.running for j in [STATE.job, *STATE.cancelled_jobs])
 
 
 # --------------------------------------------------------------------------- the timer
@@ -235,7 +253,9 @@ def _context(scene):
 
 def _finish(job: LiveJob, scene, settings, now: float):
     """Main thread: apply a finished job of the current generation (or drop it)."""
-    if job.cancelled.is_set() or job.generation != STATE.generation:
+    if job.cancelled.is_set():
+        return
+    if job.generation != STATE.generation:  # finished after a newer change: never shown
         STATE.builds["dropped"] += 1
         return
     try:
@@ -244,7 +264,6 @@ def _finish(job: LiveJob, scene, settings, now: float):
         from .ops import BuildCancelled
 
         if isinstance(ex, BuildCancelled):
-            STATE.builds["dropped"] += 1
             return
         if not isinstance(ex, SkymodelInputError):
             traceback.print_exception(type(ex), ex, ex.__traceback__)
@@ -269,18 +288,17 @@ def tick(now: float | None = None) -> float | None:
     scene = bpy.data.scenes.get(STATE.scene)
     world = bpy.data.worlds.get(STATE.world)
     settings = _settings_of(world)
+    STATE.cancelled_jobs = [j for j in STATE.cancelled_jobs if j.running]
+    _supersede()
     job = STATE.job
     if job is not None:
         if job.running:
-            if job.generation != STATE.generation and not job.cancelled.is_set():
-                job.cancel()
-                STATE.builds["cancelled"] += 1
             return POLL_S
         STATE.job = None
         if scene is not None and settings is not None:
             _finish(job, scene, settings, now)
     if STATE.pending is None or scene is None or settings is None:
-        return None
+        return POLL_S if STATE.cancelled_jobs else None
     if not settings.live_update:
         STATE.pending = None
         return None
@@ -292,6 +310,8 @@ def tick(now: float | None = None) -> float | None:
     from . import ops
 
     if ops.JOB is not None and ops.JOB.running:  # Build Sky's own build: wait for it
+        return POLL_S
+    if len(STATE.cancelled_jobs) > MAX_CANCELLED_RUNNING:  # enough cancelled threads still busy: wait
         return POLL_S
     quiet = now - STATE.changed_at
     wait = DEBOUNCE_S if STATE.pending == "preview" else SETTLE_S

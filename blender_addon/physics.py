@@ -297,6 +297,25 @@ def render_environment(sky: ResolvedSky, cache_dir=None, progress=None, include_
 MOON_WAVELENGTH_STEP_NM = 10.0
 
 
+def _moon_above_atmosphere(wavelengths_nm, latitude_deg, longitude_deg, time_utc):
+    """The moon lamp for Volumetric mode, where Cycles attenuates the lamp through the
+    volumes and the ground sphere casts the horizon: the ROLO irradiance above the
+    atmosphere (:func:`skymodel.astro.lunar_irradiance.moon_irradiance`), place and disc
+    from :func:`skymodel.astro.moon.moon_position`."""
+    from skymodel.astro.lunar_irradiance import moon_irradiance
+    from skymodel.astro.moon import moon_position
+
+    pos = moon_position(latitude_deg, longitude_deg, time_utc)
+    irr = np.asarray(moon_irradiance(pos, wavelengths_nm), dtype=float)
+    strength, colour = sun_lamp(irr, wavelengths_nm)
+    visible = 1.0 if float(pos.elevation_deg) > -2.0 * float(pos.angular_radius_deg) else 0.0
+    return {"elevation_deg": float(pos.elevation_deg), "azimuth_deg": float(pos.azimuth_deg),
+            "strength": float(strength) * visible, "colour": tuple(colour),
+            "angle_deg": 2.0 * float(pos.angular_radius_deg), "phase_angle_deg": float(pos.phase_angle_deg),
+            "illuminated_fraction": float(pos.illuminated_fraction), "visible_fraction": visible,
+            "source": "skymodel.astro (above the atmosphere)"}
+
+
 def _moon_from_astro(profile, latitude_deg, longitude_deg, time_utc, observer_altitude_m):
     """The moon lamp from :mod:`skymodel.astro` and the core's transmittance table, used
     until the core's own :func:`skymodel.render.night.moon_lamp` is installed: topocentric
@@ -327,7 +346,7 @@ def _moon_from_astro(profile, latitude_deg, longitude_deg, time_utc, observer_al
             "source": "skymodel.astro"}
 
 
-def moon_lamp(sky: ResolvedSky) -> dict | None:
+def moon_lamp(sky: ResolvedSky, above_atmosphere: bool = False) -> dict | None:
     """The moon as a second lamp for a sky with a date: ``{"elevation_deg", "azimuth_deg"
     (topocentric, clockwise from north), "strength" (W m^-2 ybar-weighted at the observer,
     the sun lamp's scale: 1.0 = 683 lux on a surface facing the moon), "colour" (Rec.709,
@@ -336,14 +355,24 @@ def moon_lamp(sky: ResolvedSky) -> dict | None:
     without a date or when the moon is below the horizon (no light reaches the observer).
 
     From the core's :func:`skymodel.render.night.moon_lamp` when it is installed; else
-    from :mod:`skymodel.astro` (:func:`_moon_from_astro`). No bpy (safe in the build thread)."""
+    from :mod:`skymodel.astro` (:func:`_moon_from_astro`). ``above_atmosphere`` (Volumetric
+    mode, whose volumes attenuate the lamp as they do the sun's): the irradiance above the
+    atmosphere instead (:func:`_moon_above_atmosphere`; the lamp is kept while the disc is
+    within two radii below the horizon, where the ground sphere shades it). No bpy (safe in
+    the build thread)."""
     if sky.time_iso is None:
         return None
     from skymodel.wavelengths import default_wavelengths
 
     wl = default_wavelengths(MOON_WAVELENGTH_STEP_NM)
-    profile = sky.atmosphere.optical_profile(wl)
     lat, lon, alt = sky.atmosphere.latitude, sky.atmosphere.longitude, float(sky.params.observer_altitude_m)
+    if above_atmosphere:
+        moon = _moon_above_atmosphere(wl, lat, lon, sky.time_iso)
+        if not moon["strength"] > 0.0:
+            return None
+        moon["illuminance_lux"] = 683.0 * moon["strength"]
+        return moon
+    profile = sky.atmosphere.optical_profile(wl)
     try:
         from skymodel.render.night import moon_lamp as core_moon_lamp
     except ImportError:

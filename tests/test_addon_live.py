@@ -125,20 +125,19 @@ def test_a_change_during_a_build_supersedes_it_and_older_skies_are_never_shown(l
     live.tick()
     first = live.STATE.job
     assert first is not None and first.generation == 2
-    s.sun_elevation = math.radians(30.0)  # while it runs: the running build is cancelled
+    s.sun_elevation = math.radians(30.0)  # while it runs: the running build is cancelled and set aside
     assert first.cancelled.is_set() and live.STATE.builds["cancelled"] == 1
-    _run_job(live)
-    live.tick()  # its result (if it got that far) is dropped, nothing is shown
-    assert live.STATE.shown is None and "Skymodel Sun" not in bpy.data.objects
-    assert live.STATE.job is None
+    assert live.STATE.job is None and live.running() == first.running
     clock.t += live.DEBOUNCE_S
-    live.tick()
+    live.tick()  # the next build starts at once, beside the cancelled one if that still runs
     job = _run_job(live)
     assert job.generation == 3
+    assert first.wait(300)
+    assert live.STATE.shown is None and "Skymodel Sun" not in bpy.data.objects
     # another change lands after this build finished but before the timer applied it: dropped too
     s.sun_elevation = math.radians(40.0)
     live.tick()
-    assert live.STATE.shown is None and live.STATE.builds["dropped"] == 2
+    assert live.STATE.shown is None and live.STATE.builds["dropped"] == 1
     for _ in range(3):  # preview then final, each for 40 degrees only
         clock.t += live.SETTLE_S
         live.tick()
@@ -146,7 +145,8 @@ def test_a_change_during_a_build_supersedes_it_and_older_skies_are_never_shown(l
             _run_job(live)
             live.tick()
             assert abs(_lamp(sc)["skymodel_sun_elevation_deg"] - 40.0) < 1e-4
-    assert live.STATE.shown == (4, "final")
+    assert live.STATE.shown == (4, "final") and live.STATE.builds["cancelled"] == 1
+    assert not live.running()
 
 
 def test_bad_input_is_named_and_leaves_the_scene_as_it_was(live_scene):

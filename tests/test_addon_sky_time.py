@@ -147,6 +147,18 @@ def test_moon_lamp_from_the_core_and_a_failed_build_leaves_the_scene(dated):
     finally:
         builder.FAIL_AT = None
     assert (sorted(o.name for o in bpy.data.objects), sorted(li.name for li in bpy.data.lights)) == before
+    # Volumetric mode: the volumes attenuate the lamp, so it carries the irradiance above the atmosphere
+    from skymodel.astro.lunar_irradiance import moon_irradiance
+    from skymodel.render.environment import sun_lamp
+    from skymodel.wavelengths import default_wavelengths
+
+    s.mode, s.n_layers = "VOLUMETRIC", 2
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
+    wl = default_wavelengths(physics.MOON_WAVELENGTH_STEP_NM)
+    top, _ = sun_lamp(moon_irradiance(pos, wl), wl)
+    assert bpy.data.objects["Skymodel Moon"].data.energy == pytest.approx(top, rel=1e-6)
+    assert top > ref["strength"]
+    s.mode = "ENVIRONMENT"
     # switched off, or the moon below the horizon: no moon lamp
     s.moon_lamp = False
     assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
@@ -155,3 +167,25 @@ def test_moon_lamp_from_the_core_and_a_failed_build_leaves_the_scene(dated):
     s.year, s.month, s.day, s.hour, s.minute = 2026, 1, 3, 12, 0  # full moon, below the horizon at noon
     assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
     assert "Skymodel Moon" not in bpy.data.objects
+
+
+def test_headless_time_zone_options(dated, tmp_path):
+    from blender_addon import physics, render
+    from skymodel.errors import SkymodelInputError
+
+    sc, s = dated
+    out = str(tmp_path / "x.png")
+    o = render.parse_args(["--location", "zaragoza", "--timezone", "Europe/Madrid", "--out", out])
+    with pytest.raises(SkymodelInputError, match="--timezone"):
+        render.check_options(o)
+    for argv, zone in ((["--time", "2026-06-21T21:30", "--timezone", "Europe/Madrid"], "Europe/Madrid"),
+                       (["--time", "2026-06-21T21:30+02:00"], "UTC")):
+        o = render.parse_args(["--location", "zaragoza", *argv, "--out", out])
+        render.check_options(o)
+        render._apply_options(s, o)
+        assert s.timezone == zone
+        assert physics.resolve(s.to_params()).time_iso == "2026-06-21T19:30:00Z"
+    o = render.parse_args(["--location", "zaragoza", "--time", "2026-06-21T21:30+01:00", "--timezone",
+                           "Europe/Madrid", "--out", out])
+    with pytest.raises(SkymodelInputError, match="offset of Europe/Madrid"):
+        render._apply_options(s, o)
