@@ -32,6 +32,9 @@ def main(argv=None):
     ap.add_argument("--interrupt", action="store_true",
                     help="in every drag after the first, change the sun again 2 s into the final build "
                          "(the latency is then from that change)")
+    ap.add_argument("--long-drag", type=float, default=0.0, metavar="SECONDS",
+                    help="after the drags, one continuous drag: a change every --interval s for SECONDS "
+                         "(ticking meanwhile); reports the previews shown during it and how old their values were")
     args = ap.parse_args(argv)
 
     os.environ.setdefault("SKYMODEL_CACHE_DIR", tempfile.mkdtemp(prefix="skymodel-live-bench-"))
@@ -82,6 +85,30 @@ def main(argv=None):
               f"{args.quality} {lat.get('final', float('nan')):.2f} s; longest tick {1000 * longest:.0f} ms; "
               f"builds so far {live.STATE.builds}", flush=True)
         assert live.STATE.changed_at == t_last
+    if args.long_drag > 0:
+        changed = {}  # generation -> time of its change
+        shown_at = []  # (time shown, generation)
+        seen = len(live.STATE.history)
+        t_end = time.perf_counter() + args.long_drag
+        next_change = time.perf_counter()
+        while time.perf_counter() < t_end:
+            now = time.perf_counter()
+            if now >= next_change:
+                elevation += 0.2
+                s.sun_elevation = math.radians(elevation)
+                changed[live.STATE.generation] = now
+                next_change = now + args.interval
+            live.tick()
+            if len(live.STATE.history) > seen:
+                shown_at.extend((time.perf_counter(), g) for g, _ in live.STATE.history[seen:])
+                seen = len(live.STATE.history)
+            time.sleep(0.02)
+        ages = [t - changed[g] for t, g in shown_at if g in changed]
+        print(f"long drag {args.long_drag:.0f} s ({len(changed)} changes): {len(shown_at)} previews shown during it"
+              + (f", their values {min(ages):.2f}..{max(ages):.2f} s old when shown (median "
+                 f"{statistics.median(ages):.2f} s)" if ages else ""), flush=True)
+        while live.tick() is not None:
+            time.sleep(0.02)
     warm = rows[1:]
     if warm:
         print(f"warm median: preview {statistics.median(r[1] for r in warm):.2f} s, "

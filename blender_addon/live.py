@@ -11,19 +11,25 @@ in a thread, the scene changed on the main thread in one transaction):
 
 1. **preview**: once the settings have been still for :data:`DEBOUNCE_S` s, a build at
    ``preview`` quality and at most the preview's image width (:data:`PREVIEW_WIDTH`);
-   several quick changes (a slider drag) give one build, of the last values;
+   several quick changes give one build, of the last values. While a slider keeps moving,
+   a preview starts :data:`DRAG_REFRESH_S` s after the first change not yet being built
+   and again as soon as the previous one is done, so the sky follows a long drag (one
+   preview at a time, of the values current when it started);
 2. **final**: once the preview of the current values is shown and the settings have been
    still for :data:`SETTLE_S` s, a build at the panel's quality and width (skipped when
    the preview already is that).
 
-A change while a build runs supersedes it: the build is cancelled and its result is
-dropped. Its thread stops at its next progress step, but the pixel march has none (a warm
+A change while the chosen quality is being built supersedes that build: it is cancelled
+and its result dropped. (A preview build runs on: its sky, of slightly older values, is
+shown when it is done, unless a newer one has been shown, and the next preview follows
+at once.) A cancelled thread stops at its next progress step, but the pixel march has none (a warm
 ``final`` 1024x512 marches for ~18 s), so the next build does not wait for it: it starts
 beside the cancelled one, which runs on without touching the scene or writing a file (it
 stops at its next step, before writing); at most :data:`MAX_CANCELLED_RUNNING` cancelled
-threads run at a time (then the next build waits). A result is applied only when it
-was computed from the settings as they are now (its ``generation`` is the current one),
-so an older sky is never shown after a newer one. Applying is what Build Sky does: the
+threads run at a time (then the next build waits). Skies are shown in the order of the
+settings they were computed from (``generation``): the chosen quality only for the
+settings as they are now, a preview only if nothing newer is shown, so an older sky is
+never shown after a newer one. Applying is what Build Sky does: the
 world image, the sun lamp (and the moon's), the exposure; all or nothing, so a failed
 build leaves the scene as it was and the panel shows the error (the message names the
 parameter, as Build Sky's do) until the next change.
@@ -51,6 +57,8 @@ from skymodel.errors import SkymodelInputError
 
 #: Seconds the settings must be still before the preview build starts (a drag gives one build).
 DEBOUNCE_S = 0.25
+#: While the settings keep changing (a drag), a preview starts this long after the first change not yet built.
+DRAG_REFRESH_S = 0.5
 #: Seconds the settings must be still before the chosen quality is built (after the preview is shown).
 SETTLE_S = 1.0
 #: Timer interval while anything is pending or running.
@@ -81,12 +89,14 @@ class LiveState:
 
     generation: int = 0  #: counts the changes; a result is applied only for the current one
     changed_at: float = 0.0  #: clock() of the last change
+    pending_since: float = 0.0  #: clock() of the first change not yet being built
     scene: str = ""  #: names of the scene and world the changes were made in
     world: str = ""
     pending: str | None = None  #: the next stage to build: "preview", "final" or None (idle)
     job: object = None  #: the LiveJob in flight
     cancelled_jobs: list = field(default_factory=list)  #: cancelled LiveJobs whose threads still run
     shown: tuple | None = None  #: (generation, stage) the scene shows
+    history: list = field(default_factory=list)  #: every (generation, stage) shown, in order
     error: str | None = None  #: the last failure (shown in the panel until the next change)
     status: str = ""  #: one line for the panel
     builds: dict = field(default_factory=lambda: {"preview": 0, "final": 0, "cancelled": 0, "dropped": 0})
@@ -160,6 +170,8 @@ def on_change(settings, context=None):
             scene = next((s for s in bpy.data.scenes if s.world == world), None)
         STATE.generation += 1
         STATE.changed_at = clock()
+        if STATE.pending != "preview":
+            STATE.pending_since = STATE.changed_at
         STATE.world = world.name
         STATE.scene = scene.name if scene is not None else ""
         STATE.pending = "preview"
@@ -180,9 +192,10 @@ def on_toggle(settings, context=None):
 
 
 def _supersede():
-    """A running build of older settings: cancel it and set it aside (its thread ends by itself)."""
+    """A running build of the chosen quality for older settings: cancel it and set it aside
+    (its thread ends by itself). A running preview goes on (shown if nothing newer is)."""
     job = STATE.job
-    if job is not None and job.running and job.generation != STATE.generation:
+    if job is not None and job.running and job.generation != STATE.generation and job.stage == "final":
         if not job.cancelled.is_set():
             job.cancel()
             STATE.builds["cancelled"] += 1
@@ -251,11 +264,19 @@ def _context(scene):
     return SimpleNamespace(scene=scene, window_manager=None)
 
 
+def _order(shown: tuple) -> tuple:
+    """Sort key of a (generation, stage): newer settings first, then the chosen quality over the preview."""
+    return shown[0], 1 if shown[1] == "final" else 0
+
+
 def _finish(job: LiveJob, scene, settings, now: float):
-    """Main thread: apply a finished job of the current generation (or drop it)."""
+    """Main thread: apply a finished job: the chosen quality only for the current settings,
+    a preview unless a newer sky is shown; else drop it."""
     if job.cancelled.is_set():
         return
-    if job.generation != STATE.generation:  # finished after a newer change: never shown
+    current = job.generation == STATE.generation
+    newer_shown = STATE.shown is not None and _order(STATE.shown) >= _order((job.generation, job.stage))
+    if (not current and job.stage == "final") or newer_shown:  # never an older sky after a newer one
         STATE.builds["dropped"] += 1
         return
     try:
@@ -265,6 +286,8 @@ def _finish(job: LiveJob, scene, settings, now: float):
 
         if isinstance(ex, BuildCancelled):
             return
+        if not current:  # values already changed again: the newer build will say what is wrong
+            return
         if not isinstance(ex, SkymodelInputError):
             traceback.print_exception(type(ex), ex, ex.__traceback__)
         STATE.error = str(ex) if isinstance(ex, SkymodelInputError) else f"{type(ex).__name__}: {ex}"
@@ -273,6 +296,11 @@ def _finish(job: LiveJob, scene, settings, now: float):
         return
     STATE.builds[job.stage] += 1
     STATE.shown = (job.generation, job.stage)
+    STATE.history.append(STATE.shown)
+    if not current:  # a preview of a drag's earlier values; the current values' preview is pending
+        STATE.status = "preview of the values of a moment ago shown; following the changes"
+        _redraw()
+        return
     STATE.latency[job.stage] = now - STATE.changed_at
     final_needed = job.stage == "preview" and not final_is_preview(settings.to_params())
     STATE.pending = "final" if final_needed else None
@@ -314,8 +342,11 @@ def tick(now: float | None = None) -> float | None:
     if len(STATE.cancelled_jobs) > MAX_CANCELLED_RUNNING:  # enough cancelled threads still busy: wait
         return POLL_S
     quiet = now - STATE.changed_at
-    wait = DEBOUNCE_S if STATE.pending == "preview" else SETTLE_S
-    if quiet < wait:
+    if STATE.pending == "preview":  # still for DEBOUNCE_S, or a drag going on for DRAG_REFRESH_S
+        ready = quiet >= DEBOUNCE_S or now - STATE.pending_since >= DRAG_REFRESH_S
+    else:
+        ready = quiet >= SETTLE_S
+    if not ready:
         return POLL_S
     stage = STATE.pending
     if stage == "preview" and final_is_preview(settings.to_params()):

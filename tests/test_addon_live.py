@@ -116,6 +116,16 @@ def test_quick_changes_give_one_preview_then_the_chosen_quality_matching_the_cor
     assert sc.view_settings.exposure == pytest.approx(res.exposure, abs=1e-5)
 
 
+def _settle(live, clock, stages=3):
+    """Run the timer until idle: each pending build started, waited for and applied."""
+    for _ in range(stages):
+        clock.t += live.SETTLE_S
+        live.tick()
+        if live.STATE.job is not None:
+            _run_job(live)
+            live.tick()
+
+
 def test_a_change_during_a_build_supersedes_it_and_older_skies_are_never_shown(live_scene):
     sc, clock, live = live_scene
     s = sc.world.skymodel
@@ -124,29 +134,69 @@ def test_a_change_during_a_build_supersedes_it_and_older_skies_are_never_shown(l
     clock.t += live.DEBOUNCE_S
     live.tick()
     first = live.STATE.job
-    assert first is not None and first.generation == 2
-    s.sun_elevation = math.radians(30.0)  # while it runs: the running build is cancelled and set aside
-    assert first.cancelled.is_set() and live.STATE.builds["cancelled"] == 1
-    assert live.STATE.job is None and live.running() == first.running
+    assert (first.stage, first.generation) == ("preview", 2)
+    # a change while a preview runs: it goes on, is shown (nothing newer is), then 30 degrees follows
+    s.sun_elevation = math.radians(30.0)
+    assert not first.cancelled.is_set() and live.STATE.job is first
+    _run_job(live)
+    live.tick()
+    assert live.STATE.shown == (2, "preview") and abs(_lamp(sc)["skymodel_sun_elevation_deg"] - 20.0) < 1e-4
+    assert live.STATE.job is None  # the next waits for the debounce
+    clock.t += live.DEBOUNCE_S
+    live.tick()
+    _run_job(live)
+    live.tick()
+    assert live.STATE.shown == (3, "preview") and abs(_lamp(sc)["skymodel_sun_elevation_deg"] - 30.0) < 1e-4
+    # a change while the chosen quality is built: that build is cancelled, set aside, never shown
+    clock.t += live.SETTLE_S
+    live.tick()
+    final = live.STATE.job
+    assert (final.stage, final.generation) == ("final", 3)
+    s.sun_elevation = math.radians(40.0)
+    assert final.cancelled.is_set() and live.STATE.builds["cancelled"] == 1
+    assert live.STATE.job is None and live.running() == final.running
     clock.t += live.DEBOUNCE_S
     live.tick()  # the next build starts at once, beside the cancelled one if that still runs
-    job = _run_job(live)
-    assert job.generation == 3
-    assert first.wait(300)
-    assert live.STATE.shown is None and "Skymodel Sun" not in bpy.data.objects
-    # another change lands after this build finished but before the timer applied it: dropped too
-    s.sun_elevation = math.radians(40.0)
+    _run_job(live)
+    assert final.wait(300)
     live.tick()
-    assert live.STATE.shown is None and live.STATE.builds["dropped"] == 1
-    for _ in range(3):  # preview then final, each for 40 degrees only
-        clock.t += live.SETTLE_S
-        live.tick()
-        if live.STATE.job is not None:
-            _run_job(live)
-            live.tick()
-            assert abs(_lamp(sc)["skymodel_sun_elevation_deg"] - 40.0) < 1e-4
-    assert live.STATE.shown == (4, "final") and live.STATE.builds["cancelled"] == 1
+    assert live.STATE.shown == (4, "preview") and abs(_lamp(sc)["skymodel_sun_elevation_deg"] - 40.0) < 1e-4
+    # the chosen quality finished after a newer change (before the timer applied it): dropped
+    clock.t += live.SETTLE_S
+    live.tick()
+    _run_job(live)
+    s.sun_elevation = math.radians(50.0)
+    live.tick()
+    assert live.STATE.shown == (4, "preview") and live.STATE.builds["dropped"] == 1
+    _settle(live, clock)
+    assert live.STATE.shown == (5, "final") and abs(_lamp(sc)["skymodel_sun_elevation_deg"] - 50.0) < 1e-4
+    assert live.STATE.history == [(2, "preview"), (3, "preview"), (4, "preview"), (5, "preview"), (5, "final")]
     assert not live.running()
+
+
+def test_a_long_drag_shows_previews_while_it_moves_in_order(live_scene):
+    sc, clock, live = live_scene
+    s = sc.world.skymodel
+    s.live_update = True
+    live.stop()
+    elevation, started = 10.0, []
+    for _ in range(30):  # a drag: a change every 0.1 s for 3 s (never still for the debounce time)
+        elevation += 1.0
+        clock.t += 0.1
+        s.sun_elevation = math.radians(elevation)
+        live.tick()
+        job = live.STATE.job
+        if job is not None and job not in started:
+            started.append(job)
+            job.wait(300)  # a fast build: done before the next change
+    assert len(started) >= 4  # a preview every DRAG_REFRESH_S while the slider moves
+    assert all(j.stage == "preview" for j in started)
+    shown_during_drag = list(live.STATE.history)
+    assert len(shown_during_drag) >= 3 and live.STATE.shown[0] < live.STATE.generation
+    _settle(live, clock)
+    gens = [g for g, _ in live.STATE.history]
+    assert gens == sorted(gens) and live.STATE.shown == (live.STATE.generation, "final")
+    assert abs(_lamp(sc)["skymodel_sun_elevation_deg"] - elevation) < 1e-4
 
 
 def test_bad_input_is_named_and_leaves_the_scene_as_it_was(live_scene):
