@@ -138,6 +138,7 @@ def build(scene, settings) -> dict:
         coll.objects.link(marker)
     tz_name = local[0].tzname() or "UTC"
     path["skymodel_day"] = f"{local[0]:%Y-%m-%d} ({tz_name})"
+    path["skymodel_signature"] = signature(settings)
     return {"points": len(pts), "hours": len(hours), "zone": tz_name}
 
 
@@ -168,10 +169,25 @@ def on_change(settings, context=None):
         ERROR[scene.name] = f"{type(ex).__name__}: {ex}"
 
 
+def signature(settings) -> str:
+    """What the path depends on (place, date, zone, radius): a change of anything else
+    (the hour, the aerosol...) keeps the path as it is."""
+    return repr((settings.location_source, settings.location.strip().lower(), round(settings.latitude, 9),
+                 round(settings.longitude, 9), settings.year, settings.month, settings.day,
+                 settings.timezone.strip(), round(settings.sun_path_radius, 6)))
+
+
 def refresh(settings, context=None):
-    """After a change of the sky's settings: redraw the path if it is shown."""
-    if getattr(settings, "show_sun_path", False):
-        on_change(settings, context)
+    """After a change of the sky's settings: redraw the path if it is shown and its place,
+    date, zone or radius changed."""
+    if not getattr(settings, "show_sun_path", False):
+        return
+    scene = _scene_of(settings, context)
+    path = bpy.data.objects.get(PATH_NAME)
+    if (scene is not None and path is not None and find_collection(scene) is not None
+            and path.get("skymodel_signature") == signature(settings) and scene.name not in ERROR):
+        return
+    on_change(settings, context)
 
 
 def draw_panel(layout, settings, scene):
@@ -182,3 +198,5 @@ def draw_panel(layout, settings, scene):
         err = ERROR.get(scene.name) if scene is not None else None
         if err:
             layout.label(text=f"Sun path: {err}", icon="ERROR")
+        elif settings.sun_source != "TIME":
+            layout.label(text=f"Path of {settings.year}-{settings.month:02d}-{settings.day:02d} (the Date and Time fields)")

@@ -128,7 +128,8 @@ def test_moon_lamp_from_the_core_and_a_failed_build_leaves_the_scene(dated):
     s.timezone = "UTC"  # sun -3.7 degrees (twilight), moon 37.6 degrees up, half lit
     assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
     moon = bpy.data.objects["Skymodel Moon"]
-    pos = moon_position(41.65, -0.88, "2026-06-21T20:00:00")
+    atm = physics.resolve(s.to_params()).atmosphere
+    pos = moon_position(atm.latitude, atm.longitude, "2026-06-21T20:00:00")
     np.testing.assert_allclose(_direction(moon), _enu(float(pos.elevation_deg), float(pos.azimuth_deg)), atol=1e-5)
     ref = physics.moon_lamp(physics.resolve(s.to_params()))
     assert moon.data.energy == pytest.approx(ref["strength"], rel=1e-6)
@@ -189,3 +190,17 @@ def test_headless_time_zone_options(dated, tmp_path):
                            "Europe/Madrid", "--out", out])
     with pytest.raises(SkymodelInputError, match="offset of Europe/Madrid"):
         render._apply_options(s, o)
+
+
+def test_sun_path_is_kept_when_only_the_hour_changes(dated):
+    from blender_addon import sunpath
+
+    sc, s = dated
+    s.show_sun_path = True
+    path = bpy.data.objects[sunpath.PATH_NAME]
+    s.hour = 10  # the path depends on the day only
+    assert bpy.data.objects[sunpath.PATH_NAME] == path
+    s.day = 22
+    new = bpy.data.objects[sunpath.PATH_NAME]
+    assert new["skymodel_day"].startswith("2026-06-22")
+    s.show_sun_path = False
