@@ -235,7 +235,7 @@ def render_frames(skies, folder: Path, progress=None) -> list:
         else:
             _, res = physics.render_environment(sky, cache_dir())
         if p.moon_lamp:  # the moon lamp of this frame (None while the moon is down)
-            res.moon = physics.moon_lamp(sky)
+            res.moon = physics.moon_from_info(res.info) or physics.moon_lamp(sky)
         shutil.copyfile(res.image_path, folder / FRAME_FILE.format(f))
         out.append((f, res))
         if progress:

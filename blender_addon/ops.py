@@ -116,7 +116,9 @@ def compute(prep: Prepared, progress=None):
         result = volumetric.compute(prep.sky, prep.cache, progress)
     result.info = dict(result.info)  # not the cached entry's dict
     if prep.sky.params.moon_lamp:  # the moon as a second lamp, when it is up (physics.moon_lamp)
-        result.moon = physics.moon_lamp(prep.sky, above_atmosphere=prep.mode == "VOLUMETRIC")
+        volumetric = prep.mode == "VOLUMETRIC"
+        result.moon = (None if volumetric else physics.moon_from_info(result.info)) or physics.moon_lamp(
+            prep.sky, above_atmosphere=volumetric)
     if prep.live_stage:
         result.info["live"] = prep.live_stage
     if prep.sky.time_local and prep.sky.timezone not in (None, "UTC"):

@@ -346,6 +346,25 @@ def _moon_from_astro(profile, latitude_deg, longitude_deg, time_utc, observer_al
             "source": "skymodel.astro"}
 
 
+_MOON_KEYS = ("elevation_deg", "azimuth_deg", "strength", "colour", "angle_deg", "phase_angle_deg",
+              "illuminated_fraction", "visible_fraction")
+
+
+def moon_from_info(info: dict) -> dict | None:
+    """The moon lamp the core's environment render recorded in its info (``info["moon"]``,
+    issue 24's night rendering, also on a cache hit) in :func:`moon_lamp`'s form; None when
+    absent, incomplete or the moon is down."""
+    moon = info.get("moon") if isinstance(info, dict) else None
+    if not isinstance(moon, dict) or not all(k in moon for k in _MOON_KEYS):
+        return None
+    out = {k: (tuple(float(c) for c in moon[k]) if k == "colour" else float(moon[k])) for k in _MOON_KEYS}
+    if not out["strength"] > 0.0:
+        return None
+    out["illuminance_lux"] = 683.0 * out["strength"]
+    out["source"] = "skymodel.render.environment (info['moon'])"
+    return out
+
+
 def moon_lamp(sky: ResolvedSky, above_atmosphere: bool = False) -> dict | None:
     """The moon as a second lamp for a sky with a date: ``{"elevation_deg", "azimuth_deg"
     (topocentric, clockwise from north), "strength" (W m^-2 ybar-weighted at the observer,
