@@ -544,7 +544,10 @@ def apply_environment(scene, world, settings, result, progress=None):
         if sky_texture:
             _sky_texture_nodes(tx, world, sky_texture)
         else:
-            img = load_image(tx, result.image_path, settings.image_storage)
+            # a live update's preview is always packed: previews come and go while a slider moves,
+            # and copies beside the .blend would pile up there
+            storage = "PACK" if result.info.get("live") == "preview" else settings.image_storage
+            img = load_image(tx, result.image_path, storage)
             result.info["image_storage"] = img["skymodel_storage"]
             _environment_nodes(tx, world, img)
 

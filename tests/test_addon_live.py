@@ -80,6 +80,8 @@ def test_quick_changes_give_one_preview_then_the_chosen_quality_matching_the_cor
 
     sc, clock, live = live_scene
     s = sc.world.skymodel
+    s.image_storage = "BESIDE"  # previews are packed all the same; only the chosen quality goes beside the .blend
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "live.blend"))
     s.live_update = True
     for el in (10.0, 12.0, 14.0):  # a drag: three changes within the debounce time
         clock.t += 0.05
@@ -96,6 +98,7 @@ def test_quick_changes_give_one_preview_then_the_chosen_quality_matching_the_cor
     assert tuple(bpy.data.images["Skymodel Sky"].size) == (16, 8)
     assert abs(_lamp(sc)["skymodel_sun_elevation_deg"] - 14.0) < 1e-4
     assert "Live update: preview" in s.last_info
+    assert bpy.data.images["Skymodel Sky"].packed_file is not None  # previews are packed, whatever the storage
     live.tick()
     assert live.STATE.job is None  # the chosen quality waits until the settings have been still for SETTLE_S
     clock.t += live.SETTLE_S
@@ -106,6 +109,8 @@ def test_quick_changes_give_one_preview_then_the_chosen_quality_matching_the_cor
     assert live.STATE.shown == (4, "final") and live.STATE.builds == {"preview": 1, "final": 1, "cancelled": 0,
                                                                       "dropped": 0}
     assert live.tick() is None  # idle: the timer ends
+    assert [p.suffix for p in (tmp_path / "skymodel_sky").iterdir()] == [".exr"]  # the final one only
+    assert bpy.data.images["Skymodel Sky"].packed_file is None
     # the scene shows the core's image of the final parameters (rendered afresh in another cache)
     sky = physics.resolve(s.to_params())
     rgb, res = physics.render_environment(sky, tmp_path / "other-cache")
