@@ -248,3 +248,26 @@ def test_live_update_off_builds_nothing_and_switching_off_cancels(live_scene):
     clock.t += live.DEBOUNCE_S
     assert live.tick() is None and live.STATE.job is None
     assert "Environment mode" in live.STATE.status
+
+
+def test_build_sky_cancels_a_live_build_first(live_scene):
+    from blender_addon import ops
+
+    sc, clock, live = live_scene
+    s = sc.world.skymodel
+    s.live_update = True
+    clock.t += live.DEBOUNCE_S
+    live.tick()
+    job = live.STATE.job
+    assert job is not None and job.stage == "preview"
+    assert bpy.ops.skymodel.build_sky() == {"FINISHED"}  # waits for the cancelled thread, then builds
+    assert job.cancelled.is_set() and not live.running() and live.STATE.pending is None
+    assert tuple(bpy.data.images["Skymodel Sky"].size) == (32, 16)  # the panel's own quality
+    assert live.tick() is None
+    assert tuple(bpy.data.images["Skymodel Sky"].size) == (32, 16) and live.STATE.shown is None
+    # a deferred Build Sky job (the modal one waits for a live thread): running until started
+    deferred = ops.BuildJob(bpy.context)
+    deferred.deferred = True
+    assert deferred.running and not deferred.wait(0.01)
+    deferred.cancel()
+    assert not deferred.running
