@@ -204,3 +204,57 @@ def test_sun_path_is_kept_when_only_the_hour_changes(dated):
     new = bpy.data.objects[sunpath.PATH_NAME]
     assert new["skymodel_day"].startswith("2026-06-22")
     s.show_sun_path = False
+
+
+class _Layout:
+    """A stand-in UI layout recording what the panel draws (each property must exist)."""
+
+    def __init__(self, log):
+        self.log = log
+        self.use_property_split = self.use_property_decorate = False
+        self.active = self.enabled = True
+        self.scale_y = 1.0
+
+    def _child(self, *args, **kwargs):
+        return _Layout(self.log)
+
+    column = row = box = split = _child
+
+    def prop(self, data, name, **kwargs):
+        assert hasattr(data, name), name
+        self.log.append(("prop", name))
+
+    def label(self, text="", **kwargs):
+        self.log.append(("label", text))
+
+    def operator(self, idname, **kwargs):
+        self.log.append(("operator", idname))
+        return type("Props", (), {})()
+
+    def template_ID(self, *args, **kwargs):
+        pass
+
+    def separator(self, *args, **kwargs):
+        pass
+
+
+def test_panel_draws_the_zone_moon_sun_path_and_live_rows(dated, monkeypatch):
+    from blender_addon import live, ui
+
+    sc, s = dated
+    s.show_sun_path = True
+    s.live_update = True
+    live.stop()
+    monkeypatch.setattr(live.STATE, "error", "timezone='x' is not allowed")
+    log = []
+    ui.draw_settings(_Layout(log), bpy.context)
+    props = {n for kind, n in log if kind == "prop"}
+    assert {"timezone", "moon_lamp", "show_sun_path", "sun_path_radius", "live_update"} <= props
+    assert ("label", "Live: timezone='x' is not allowed") in log
+    s.mode = "VOLUMETRIC"
+    log.clear()
+    ui.draw_settings(_Layout(log), bpy.context)
+    assert any(kind == "label" and text.startswith("Live: Live Update works in Environment mode") for kind, text in log)
+    s.live_update = False
+    s.show_sun_path = False
+    live.reset()
