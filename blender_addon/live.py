@@ -279,6 +279,9 @@ def _finish(job: LiveJob, scene, settings, now: float):
     if (not current and job.stage == "final") or newer_shown:  # never an older sky after a newer one
         STATE.builds["dropped"] += 1
         return
+    if blocked_reason(scene, settings):  # the mode changed or a bake came in meanwhile
+        STATE.builds["dropped"] += 1
+        return
     try:
         result = job.job.finish(_context(scene), settings)
     except BaseException as ex:  # the scene was rolled back by the transaction
@@ -295,14 +298,18 @@ def _finish(job: LiveJob, scene, settings, now: float):
         STATE.status = ""
         return
     STATE.builds[job.stage] += 1
-    STATE.shown = (job.generation, job.stage)
+    final_needed = job.stage == "preview" and not final_is_preview(settings.to_params())
+    # a preview of the panel's own quality and width is its final sky
+    STATE.shown = (job.generation, "final" if current and job.stage == "preview" and not final_needed
+                   else job.stage)
     STATE.history.append(STATE.shown)
     if not current:  # a preview of a drag's earlier values; the current values' preview is pending
         STATE.status = "preview of the values of a moment ago shown; following the changes"
         _redraw()
         return
     STATE.latency[job.stage] = now - STATE.changed_at
-    final_needed = job.stage == "preview" and not final_is_preview(settings.to_params())
+    if STATE.shown[1] == "final":
+        STATE.latency["final"] = STATE.latency[job.stage]
     STATE.pending = "final" if final_needed else None
     STATE.status = (f"{job.stage} shown {STATE.latency[job.stage]:.1f} s after the last change"
                     + (" (cached image)" if result.cache_hit else ""))
@@ -348,9 +355,7 @@ def tick(now: float | None = None) -> float | None:
         ready = quiet >= SETTLE_S
     if not ready:
         return POLL_S
-    stage = STATE.pending
-    if stage == "preview" and final_is_preview(settings.to_params()):
-        stage = "final"
+    stage = STATE.pending  # a preview of the panel's own quality stays a "preview": a drag does not cancel it
     try:
         STATE.job = LiveJob(_context(scene), settings, stage, STATE.generation).start()
     except SkymodelInputError as ex:  # bad input: named before any work; the scene untouched

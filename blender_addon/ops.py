@@ -359,6 +359,9 @@ class SKYMODEL_OT_remove_sky(bpy.types.Operator):
         return context.scene is not None
 
     def execute(self, context):
+        from . import live
+
+        live.stop()  # a live build in flight must not put the sky back
         builder.remove_all(context.scene, context.scene.world)
         if context.scene.world is not None:
             context.scene.world.skymodel.last_build = ""

@@ -271,3 +271,43 @@ def test_build_sky_cancels_a_live_build_first(live_scene):
     assert deferred.running and not deferred.wait(0.01)
     deferred.cancel()
     assert not deferred.running
+
+
+def test_a_panel_at_preview_quality_needs_no_second_build_and_remove_sky_stops_live(live_scene, monkeypatch):
+    sc, clock, live = live_scene
+    monkeypatch.setattr(live, "PREVIEW_WIDTH", 64)  # the panel's 32 px preview is its own final sky
+    s = sc.world.skymodel
+    s.live_update = True
+    clock.t += live.DEBOUNCE_S
+    live.tick()
+    job = live.STATE.job
+    assert job.stage == "preview"
+    s.sun_elevation = math.radians(33.0)  # a drag: the running preview is not cancelled
+    assert not job.cancelled.is_set()
+    _run_job(live)
+    live.tick()
+    assert live.STATE.shown == (1, "preview")  # values of a moment ago
+    clock.t += live.DEBOUNCE_S
+    live.tick()
+    _run_job(live)
+    live.tick()
+    assert live.STATE.shown == (2, "final") and live.tick() is None  # no second build
+    assert live.STATE.builds == {"preview": 2, "final": 0, "cancelled": 0, "dropped": 0}
+    # a change, then Remove Sky while its build runs: the sky does not come back
+    s.sun_elevation = math.radians(35.0)
+    clock.t += live.DEBOUNCE_S
+    live.tick()
+    job = live.STATE.job
+    assert bpy.ops.skymodel.remove_sky() == {"FINISHED"}
+    job.wait(300)
+    live.tick()
+    assert "Skymodel Sun" not in bpy.data.objects and "Skymodel Sky" not in bpy.data.images
+    # switching to Volumetric while a build runs: its environment sky is not applied
+    s.sun_elevation = math.radians(36.0)
+    clock.t += live.DEBOUNCE_S
+    live.tick()
+    job = live.STATE.job
+    s.mode = "VOLUMETRIC"
+    job.wait(300)
+    live.tick()
+    assert "Skymodel Sun" not in bpy.data.objects
