@@ -417,6 +417,9 @@ def bake(context, settings=None, folder=None, progress=None) -> dict:
         raise SkymodelInputError("sky_model", params.sky_model, "a model that makes images (ours, preetham, "
                                                                 "openspace_earth); Blender's Sky Texture animates "
                                                                 "by itself")
+    from . import live
+
+    live.stop()  # a live build in flight is not applied over the bake
     frames = frame_range(scene)
     if scene.frame_start < 1:
         raise SkymodelInputError("frame_start", scene.frame_start, "a scene range starting at frame 1 or later "
