@@ -10,7 +10,8 @@ What is built and why
     (:class:`skymodel.render.sequence.SolutionCache`), and writes them as an EXR sequence
     (``sky_0001.exr`` ... numbered by scene frame) that the world's Environment Texture
     reads as an image *sequence*; the sun lamp's rotation, strength and colour and the
-    film exposure get one keyframe per frame. Nothing is computed at render time, so a
+    film exposure get one keyframe per frame, and so does the moon lamp's (with *Moon Lamp*
+    on, when the moon is up in any frame; strength 0 in the frames where it is down). Nothing is computed at render time, so a
     keyframed time never renders a sky of another frame. No frame-change handler
     re-renders while scrubbing: a preview image per frame costs about a second, too slow
     for scrubbing, and a handler would not run where the add-on is not installed anyway.
@@ -25,8 +26,9 @@ What is built and why
     **Animate Day** keyframes a day in *local* time: the frames from ``time_from`` to
     ``time_to`` every ``every`` on ``date`` in ``timezone`` (IANA name, DST applied; the
     core's :func:`skymodel.render.timeline.day_frames`), as the UTC date and time the
-    settings hold (constant interpolation, one key per frame), and sets the scene's frame
-    range. Then Bake Time of Day.
+    settings hold (constant interpolation, one key per frame; the panel's *Time Zone* is
+    set to UTC, so the keyed fields read as UTC, and an hour repeated at a daylight-saving
+    change stays two distinct keys), and sets the scene's frame range. Then Bake Time of Day.
 
 Where the images go
     ``folder`` when given; else ``//skymodel_sky/bake-<id>/`` beside the saved .blend
@@ -232,6 +234,8 @@ def render_frames(skies, folder: Path, progress=None) -> list:
             res.info = dict(env.info)
         else:
             _, res = physics.render_environment(sky, cache_dir())
+        if p.moon_lamp:  # the moon lamp of this frame (None while the moon is down)
+            res.moon = physics.moon_from_info(res.info) or physics.moon_lamp(sky)
         shutil.copyfile(res.image_path, folder / FRAME_FILE.format(f))
         out.append((f, res))
         if progress:
@@ -341,6 +345,9 @@ def apply_bake(scene, world, settings, frames: list, folder: Path, skies: list) 
     the build id."""
     first = frames[0][1]
     record = {"folder": str(folder), "frames": {}}
+    moons = [res.moon for _, res in frames]
+    if first.moon is None:  # a moon lamp when the moon is up in any frame (dark in the others)
+        first.moon = next((m for m in moons if m), None)
 
     def content(tx, coll):
         img = _load_sequence(tx, folder / FRAME_FILE.format(frames[0][0]))
@@ -353,7 +360,9 @@ def apply_bake(scene, world, settings, frames: list, folder: Path, skies: list) 
         user.frame_duration = frames[-1][0]
         user.use_auto_refresh = True
         user.use_cyclic = False
-        sun = next(o for o in coll.objects if builder.is_ours(o) and o[builder.TAG] == tx.build_id and o.type == "LIGHT")
+        ours = [o for o in coll.objects if builder.is_ours(o) and o[builder.TAG] == tx.build_id and o.type == "LIGHT"]
+        sun = next(o for o in ours if "skymodel_sun_elevation_deg" in o.keys())
+        moon = next((o for o in ours if "skymodel_moon_elevation_deg" in o.keys()), None)
         light = sun.data
         fcurves: list = []
         old_keys = _keys(scene, "view_settings.exposure")  # a previous bake's: put back on failure
@@ -368,12 +377,22 @@ def apply_bake(scene, world, settings, frames: list, folder: Path, skies: list) 
             _keyframe(sun, "rotation_euler", f, fcurves)
             _keyframe(light, "energy", f, fcurves)
             _keyframe(light, "color", f, fcurves)
+            if moon is not None:  # below the horizon: dark, kept where it set
+                m = res.moon
+                if m:
+                    moon.rotation_euler = builder.sun_rotation(m["elevation_deg"], m["azimuth_deg"])
+                    moon.data.color = tuple(float(c) for c in m["colour"])
+                moon.data.energy = float(m["strength"]) if m else 0.0
+                _keyframe(moon, "rotation_euler", f, fcurves)
+                _keyframe(moon.data, "energy", f, fcurves)
+                _keyframe(moon.data, "color", f, fcurves)
             if settings.set_exposure:
                 scene.view_settings.exposure = builder.film_exposure(settings, res)
                 _keyframe(scene.view_settings, "exposure", f, fcurves)
             record["frames"][str(f)] = {"signature": sky_signature(sky), "file": FRAME_FILE.format(f),
                                         "exposure": builder.film_exposure(settings, res),
-                                        "sun_strength": float(res.sun_strength)}
+                                        "sun_strength": float(res.sun_strength),
+                                        "moon_strength": float(res.moon["strength"]) if res.moon else 0.0}
         scene.view_settings.exposure = old_exposure  # what the build records as the value before it
         record["build"] = tx.build_id
         record["keys"] = keys_fingerprint(world)  # what bake_warning compares
@@ -398,6 +417,9 @@ def bake(context, settings=None, folder=None, progress=None) -> dict:
         raise SkymodelInputError("sky_model", params.sky_model, "a model that makes images (ours, preetham, "
                                                                 "openspace_earth); Blender's Sky Texture animates "
                                                                 "by itself")
+    from . import live
+
+    live.stop()  # a live build in flight is not applied over the bake
     frames = frame_range(scene)
     if scene.frame_start < 1:
         raise SkymodelInputError("frame_start", scene.frame_start, "a scene range starting at frame 1 or later "
@@ -439,6 +461,7 @@ def animate_day(scene, settings, date, time_from, time_to, every, timezone=None)
     if any(f.time_utc[17:19] != "00" for f in frames):
         raise SkymodelInputError("every", every, "a step of whole minutes (the settings hold minutes)")
     settings.sun_source = "TIME"
+    settings.timezone = "UTC"  # the keys hold UTC (every instant exists once in UTC, across DST changes too)
     for k, f in enumerate(frames, start=1):
         t = f.time_utc
         settings.year, settings.month, settings.day = int(t[:4]), int(t[5:7]), int(t[8:10])
@@ -518,6 +541,9 @@ class SKYMODEL_OT_animate_day(bpy.types.Operator):
         return context.scene is not None and context.scene.world is not None
 
     def invoke(self, context, event):
+        zone = context.scene.world.skymodel.timezone.strip()
+        if zone:
+            self.timezone = zone
         return context.window_manager.invoke_props_dialog(self)
 
     def execute(self, context):

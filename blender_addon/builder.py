@@ -350,6 +350,22 @@ def _new_sun(tx: Transaction, result):
     return obj
 
 
+def _new_moon(tx: Transaction, moon: dict):
+    """The moon lamp (:func:`.physics.moon_lamp`): a second sun lamp shining from the moon,
+    with its irradiance at the observer, colour and apparent diameter."""
+    light = tx.new("lights", "Skymodel Moon", "SUN")
+    light.energy = float(moon["strength"])
+    light.color = tuple(float(c) for c in moon["colour"])
+    light.angle = math.radians(float(moon["angle_deg"]))
+    obj = tx.new("objects", "Skymodel Moon", light)
+    obj.rotation_mode = "XYZ"
+    obj.rotation_euler = sun_rotation(moon["elevation_deg"], moon["azimuth_deg"])
+    obj.location = (0.0, 0.0, 12.0)
+    for key in ("elevation_deg", "azimuth_deg", "phase_angle_deg", "illuminated_fraction", "illuminance_lux"):
+        obj[f"skymodel_moon_{key}"] = float(moon[key])
+    return obj
+
+
 def _world_surface(tx: Transaction, world, shader_socket):
     tree = world.node_tree
     out = world_output(tree)
@@ -496,6 +512,8 @@ def build(scene, world, settings, result, add_content) -> str:
         coll = _ensure_collection(tx, scene)
         sun = _new_sun(tx, result)
         tx.link_object(coll, sun)
+        if getattr(result, "moon", None):
+            tx.link_object(coll, _new_moon(tx, result.moon))
         add_content(tx, coll)
         if settings.set_exposure:
             _view_settings(tx, scene, film_exposure(settings, result))
@@ -526,7 +544,10 @@ def apply_environment(scene, world, settings, result, progress=None):
         if sky_texture:
             _sky_texture_nodes(tx, world, sky_texture)
         else:
-            img = load_image(tx, result.image_path, settings.image_storage)
+            # a live update's preview is always packed: previews come and go while a slider moves,
+            # and copies beside the .blend would pile up there
+            storage = "PACK" if result.info.get("live") == "preview" else settings.image_storage
+            img = load_image(tx, result.image_path, storage)
             result.info["image_storage"] = img["skymodel_storage"]
             _environment_nodes(tx, world, img)
 
@@ -563,6 +584,15 @@ def _write_info(tx: Transaction, settings, result):
         f"{result.mode.title()}: sun {result.sun_elevation_deg:.2f}° el, {result.sun_azimuth_deg:.2f}° az",
         f"Sun {result.sun_strength:.3g} W/m² (Y), exposure {film_exposure(settings, result):+.2f} EV",
     ]
+    moon = getattr(result, "moon", None)
+    if moon:
+        lines.append(f"Moon {moon['elevation_deg']:.1f}° el, {moon['azimuth_deg']:.1f}° az, "
+                     f"{100 * moon['illuminated_fraction']:.0f} % lit, {moon['illuminance_lux']:.3g} lux")
+    if sky_time := info.get("time_local"):
+        lines.append(f"Time {sky_time}")
+    if info.get("live"):
+        lines.append(f"Live update: {info['live']} quality" + (" (the chosen quality follows)"
+                                                                if info["live"] == "preview" else ""))
     if "total_s" in info:
         lines.append(f"Built in {info['total_s']:.1f} s" + (" (cached image)" if result.cache_hit else ""))
     if info.get("auto"):

@@ -75,15 +75,17 @@ class Prepared:
     cache: Path
     auto_info: dict | None
     t0: float
+    live_stage: str | None = None  #: "preview" / "final" for a live update's build (:mod:`.live`)
 
 
-def prepare(context, settings=None, progress=None) -> Prepared:
+def prepare(context, settings=None, progress=None, params=None, live_stage=None) -> Prepared:
     """Main thread: read the panel (and, in Auto mode, the scene for the planner), validate
-    through the core, place the sun. Raises ``SkymodelInputError`` naming the parameter."""
+    through the core, place the sun. Raises ``SkymodelInputError`` naming the parameter.
+    ``params``: build these instead of the panel's (the live update's preview stage)."""
     scene = context.scene
     settings = settings or scene.world.skymodel
     t0 = time.perf_counter()
-    params = settings.to_params()
+    params = settings.to_params() if params is None else params
     auto_info = None
     if params.mode == "AUTO":  # the effect planner decides (skymodel.planner)
         from . import scene_description
@@ -99,8 +101,9 @@ def prepare(context, settings=None, progress=None) -> Prepared:
     sky = physics.resolve(params)
     if progress:
         progress(f"sun elevation {sky.sun_elevation_deg:.2f}°, azimuth {sky.sun_azimuth_deg:.2f}°"
-                 + (f" ({sky.time_iso})" if sky.time_iso else ""))
-    return Prepared(sky, params.mode, cache_dir(), auto_info, t0)
+                 + (f" ({sky.time_iso})" if sky.time_iso else "")
+                 + (f", local {sky.time_local} {sky.timezone}" if sky.time_local else ""))
+    return Prepared(sky, params.mode, cache_dir(), auto_info, t0, live_stage)
 
 
 def compute(prep: Prepared, progress=None):
@@ -112,6 +115,14 @@ def compute(prep: Prepared, progress=None):
 
         result = volumetric.compute(prep.sky, prep.cache, progress)
     result.info = dict(result.info)  # not the cached entry's dict
+    if prep.sky.params.moon_lamp:  # the moon as a second lamp, when it is up (physics.moon_lamp)
+        volumetric = prep.mode == "VOLUMETRIC"
+        result.moon = (None if volumetric else physics.moon_from_info(result.info)) or physics.moon_lamp(
+            prep.sky, above_atmosphere=volumetric)
+    if prep.live_stage:
+        result.info["live"] = prep.live_stage
+    if prep.sky.time_local and prep.sky.timezone not in (None, "UTC"):
+        result.info["time_local"] = f"{prep.sky.time_local} {prep.sky.timezone}"
     if prep.auto_info:
         result.info["auto"] = prep.auto_info["auto"]
         result.info["warnings"] = list(result.info.get("warnings", ())) + prep.auto_info["warnings"]
@@ -136,9 +147,13 @@ def apply(context, prep: Prepared, result, settings=None, progress=None):
 
 def build(context, settings=None, progress=None):
     """Build the sky of ``context.scene.world`` in one go (the operator's ``execute``, used
-    from scripts, and ``render.py``); raises on bad input or failure, leaving the scene untouched."""
+    from scripts, and ``render.py``); raises on bad input or failure, leaving the scene untouched.
+    A live update's build (:mod:`.live`) is cancelled first and waited for."""
     if JOB is not None and JOB.running:
         raise RuntimeError("a sky build is already running (Esc cancels it)")
+    from . import live
+
+    live.stop(wait=600.0)
     prep = prepare(context, settings, progress)
     return apply(context, prep, compute(prep, progress), settings, progress)
 
@@ -149,15 +164,17 @@ class BuildJob:
     computation stop at its next progress step; nothing touches the scene before
     :meth:`finish`, so a cancelled or failed job leaves it exactly as it was."""
 
-    def __init__(self, context, settings=None):
+    def __init__(self, context, settings=None, params=None, live_stage=None):
         self.lines: list[str] = []
         self.status = "starting"
         self.cancelled = threading.Event()
         self.result = None
         self.error: BaseException | None = None
         self.t0 = time.perf_counter()
-        self.prep = prepare(context, settings, self._progress)
+        self.prep = prepare(context, settings, self._progress, params=params, live_stage=live_stage)
         self.thread = threading.Thread(target=self._run, name="skymodel-build", daemon=True)
+        #: prepared, waiting for a live update's thread to end before starting (Build Sky's modal)
+        self.deferred = False
 
     def _progress(self, text: str):
         if self.cancelled.is_set():
@@ -176,20 +193,23 @@ class BuildJob:
             self.error = ex
 
     def start(self):
+        self.deferred = False
         self.thread.start()
         return self
 
     @property
     def running(self) -> bool:
-        return self.thread.is_alive()
+        return self.deferred or self.thread.is_alive()
 
     def cancel(self):
         self.cancelled.set()
+        self.deferred = False  # never started: nothing to stop
         self.status = "cancelling"
 
     def wait(self, timeout=None) -> bool:
-        self.thread.join(timeout)
-        return not self.thread.is_alive()
+        if self.thread.ident is not None:
+            self.thread.join(timeout)
+        return not self.running
 
     def finish(self, context, settings=None):
         """Main thread, once the thread is done: apply the result (or re-raise its error;
@@ -258,8 +278,15 @@ class SKYMODEL_OT_build_sky(bpy.types.Operator):
             return {"CANCELLED"}
         if context.window is None or context.window_manager is None:
             return self.execute(context)
+        from . import live
+
+        live.stop()  # a live update's build: cancelled; ours starts when its thread has ended
         try:
-            JOB = BuildJob(context).start()
+            JOB = BuildJob(context)
+            if live.running():
+                JOB.deferred = True
+            else:
+                JOB.start()
         except BaseException as ex:
             _report_failure(self, ex)
             return {"CANCELLED"}
@@ -299,6 +326,12 @@ class SKYMODEL_OT_build_sky(bpy.types.Operator):
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
+        if job.deferred:
+            from . import live
+
+            if not live.running():
+                job.start()
+            return {"RUNNING_MODAL"}
         if job.running:
             context.window_manager.progress_update(min(99, len(job.lines) * 5))
             self._status(context, f"Skymodel: {job.status} (Esc cancels)")
@@ -326,6 +359,9 @@ class SKYMODEL_OT_remove_sky(bpy.types.Operator):
         return context.scene is not None
 
     def execute(self, context):
+        from . import live
+
+        live.stop()  # a live build in flight must not put the sky back
         builder.remove_all(context.scene, context.scene.world)
         if context.scene.world is not None:
             context.scene.world.skymodel.last_build = ""
@@ -349,7 +385,9 @@ def clear_cache() -> dict:
     ``{"files", "bytes", "packed", "folder"}``."""
     from skymodel.render.environment import clear_cache as clear_folder
 
-    if JOB is not None and JOB.running:
+    from . import live
+
+    if (JOB is not None and JOB.running) or live.running():
         raise RuntimeError("a sky build is running; clear the cache when it has finished (Esc cancels it)")
     folder = cache_dir()
     packed = 0

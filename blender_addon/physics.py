@@ -36,6 +36,7 @@ Exposure (the "incident-light meter" rule)
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -82,6 +83,9 @@ class SkyParams:
     longitude_deg: float | None = None
     month: int = scene.default("month")
     time_utc: tuple | None = None
+    #: the zone ``time_utc`` is read in (IANA name, UTC, +02:00 or auto: :func:`skymodel.scene.resolve_time`);
+    #: None: the fields are UTC
+    timezone: str | None = None
     sun_elevation_deg: float = scene.default("sun_elevation")
     sun_azimuth_deg: float = scene.default("sun_azimuth")
     aerosol: str | None = None
@@ -102,6 +106,7 @@ class SkyParams:
     wavelength_step_nm: float | None = None
     orders: int | None = None  # highest scattering order; 0 = until converged
     earth_shadow: bool = True
+    moon_lamp: bool = False  # with a date: a second lamp for the moon when it is up (:func:`moon_lamp`)
 
 
 @dataclass(frozen=True)
@@ -115,6 +120,8 @@ class ResolvedSky:
     sun_azimuth_deg: float
     earth_sun_distance_au: float
     time_iso: str | None
+    time_local: str | None = None  #: the wall-clock time with its offset, when a date was given
+    timezone: str | None = None  #: the zone it was read in (``auto`` resolved to its name)
 
     def profile(self, wavelengths_nm):
         """The atmosphere's optical profile, solar spectrum scaled to the date's distance."""
@@ -145,17 +152,34 @@ def resolve(params: SkyParams) -> ResolvedSky:
     # the date (if any) is checked first: a bad day is named before the atmosphere is built
     month = p.month if p.time_utc is None else scene.month_of(p.time_utc)
     day = None if p.time_utc is None else scene.day_of_year(p.time_utc)  # the date's ozone, as the CLI's
-    atm = Atmosphere(location=p.location, month=month, day_of_year=day, latitude=p.latitude_deg,
-                     longitude=p.longitude_deg,
-                     aerosol=p.aerosol, aod550=p.aod550, turbidity=p.turbidity, stratospheric=p.stratospheric,
-                     ozone_du=p.ozone_du, albedo=p.albedo, aerosol_model=p.aerosol_model,
-                     site_altitude_m=p.site_altitude_m)
-    for rule in atm.location_rules:  # a custom place: which rule chose the aerosol type and the ground
-        print(f"skymodel: {rule}")
-    if p.time_utc is not None:  # the date places the sun; the angle fields are not used
+
+    def atmosphere(month, day):
+        return Atmosphere(location=p.location, month=month, day_of_year=day, latitude=p.latitude_deg,
+                          longitude=p.longitude_deg,
+                          aerosol=p.aerosol, aod550=p.aod550, turbidity=p.turbidity, stratospheric=p.stratospheric,
+                          ozone_du=p.ozone_du, albedo=p.albedo, aerosol_model=p.aerosol_model,
+                          site_altitude_m=p.site_altitude_m)
+
+    atm = atmosphere(month, day)
+    if p.time_utc is not None and p.timezone is not None:
+        # local time in the zone (auto: the zone at the place), read by the core as --timezone is: a
+        # time skipped or repeated at a daylight-saving change is refused with its message; the
+        # ozone is the UTC date's
+        instant = scene.resolve_time(p.time_utc, p.timezone, atm.latitude, atm.longitude)
+        utc = instant.utc_iso
+        if (scene.month_of(utc), scene.day_of_year(utc)) != (month, day):
+            month, day = scene.month_of(utc), scene.day_of_year(utc)
+            atm = atmosphere(month, day)
+        sun = scene.place_sun(atm.latitude, atm.longitude, instant.local_iso)
+        local, zone = instant.local_iso, instant.timezone
+    elif p.time_utc is not None:  # the date places the sun; the angle fields are not used
         sun = scene.place_sun(atm.latitude, atm.longitude, p.time_utc)
+        local, zone = None, None
     else:
         sun = scene.place_sun(elevation_deg=p.sun_elevation_deg, azimuth_deg=p.sun_azimuth_deg)
+        local, zone = None, None
+    for rule in atm.location_rules:  # a custom place: which rule chose the aerosol type and the ground
+        print(f"skymodel: {rule}")
     elev, az, dist, iso = sun.elevation_deg, sun.azimuth_deg, sun.earth_sun_distance_au, sun.time_utc
     scene.check("observer_altitude", p.observer_altitude_m)
     p = dataclasses.replace(p, quality=quality) if quality != p.quality else p
@@ -169,7 +193,7 @@ def resolve(params: SkyParams) -> ResolvedSky:
         raise _err("sky_model", p.sky_model, "ours in Volumetric mode (the other models make environment images only)")
     if p.sky_model not in ("ours", "blender") and p.observer_altitude_m != 0.0:
         raise _err("observer_altitude", p.observer_altitude_m, f"0 m with the {p.sky_model} sky model (a ground observer)")
-    return ResolvedSky(p, atm, float(elev), float(az), dist, iso)
+    return ResolvedSky(p, atm, float(elev), float(az), dist, iso, local, zone)
 
 
 def image_width(params: SkyParams) -> int:
@@ -202,6 +226,7 @@ class SkyResult:
     layers: list = field(default_factory=list)  # volumetric: dicts per ball, outermost first
     ground_albedo_rgb: tuple | None = None
     info: dict = field(default_factory=dict)
+    moon: dict | None = None  #: the moon lamp (:func:`moon_lamp`), None when not asked for or the moon is down
 
 
 def model_environment(sky: ResolvedSky, camera, wavelengths_nm, include_sun=False):
@@ -263,3 +288,124 @@ def render_environment(sky: ResolvedSky, cache_dir=None, progress=None, include_
     res = SkyResult(mode="ENVIRONMENT", image_path=env.image_path, cache_hit=env.cache_hit, **env.lamp())
     res.info = env.info
     return rgb, res
+
+
+# --------------------------------------------------------------------------- the moon
+
+
+#: Wavelength step (nm) of the moon lamp's spectrum (a lamp is one RGB colour: 10 nm is plenty).
+MOON_WAVELENGTH_STEP_NM = 10.0
+
+
+def _moon_above_atmosphere(wavelengths_nm, latitude_deg, longitude_deg, time_utc):
+    """The moon lamp for Volumetric mode, where Cycles attenuates the lamp through the
+    volumes and the ground sphere casts the horizon: the ROLO irradiance above the
+    atmosphere (:func:`skymodel.astro.lunar_irradiance.moon_irradiance`), place and disc
+    from :func:`skymodel.astro.moon.moon_position`."""
+    from skymodel.astro.lunar_irradiance import moon_irradiance
+    from skymodel.astro.moon import moon_position
+
+    pos = moon_position(latitude_deg, longitude_deg, time_utc)
+    irr = np.asarray(moon_irradiance(pos, wavelengths_nm), dtype=float)
+    strength, colour = sun_lamp(irr, wavelengths_nm)
+    visible = 1.0 if float(pos.elevation_deg) > -2.0 * float(pos.angular_radius_deg) else 0.0
+    return {"elevation_deg": float(pos.elevation_deg), "azimuth_deg": float(pos.azimuth_deg),
+            "strength": float(strength) * visible, "colour": tuple(colour),
+            "angle_deg": 2.0 * float(pos.angular_radius_deg), "phase_angle_deg": float(pos.phase_angle_deg),
+            "illuminated_fraction": float(pos.illuminated_fraction), "visible_fraction": visible,
+            "source": "skymodel.astro (above the atmosphere)"}
+
+
+def _moon_from_astro(profile, latitude_deg, longitude_deg, time_utc, observer_altitude_m):
+    """The moon lamp from :mod:`skymodel.astro` and the core's transmittance table, used
+    until the core's own :func:`skymodel.render.night.moon_lamp` is installed: topocentric
+    place and disc (:func:`skymodel.astro.moon.moon_position`), ROLO irradiance above the
+    atmosphere (:func:`skymodel.astro.lunar_irradiance.moon_irradiance`), times the direct
+    transmittance of the atmosphere toward the moon and the fraction of the disc above the
+    horizon (:class:`skymodel.render.sun_transmittance.SunTransmittance` of the profile's
+    true extinction, as the sun lamp's)."""
+    from skymodel.astro.lunar_irradiance import moon_irradiance
+    from skymodel.astro.moon import moon_position
+    from skymodel.render.medium import factor_medium
+    from skymodel.render.sun_transmittance import SunTransmittance
+
+    pos = moon_position(latitude_deg, longitude_deg, time_utc)
+    wl = profile.wavelengths_nm
+    top_irr = np.asarray(moon_irradiance(pos, wl), dtype=float)
+    table = SunTransmittance([factor_medium(profile).extinction], profile.planet_radius_m, profile.top_altitude_m,
+                             n_altitudes=16, n_x=128, n_steps=128)
+    mu = np.array([math.sin(math.radians(float(pos.elevation_deg)))])
+    alt = np.array([float(observer_altitude_m)])
+    fraction = float(table.visible_fraction(alt, mu)[0])
+    irr = top_irr * np.exp(-table.optical_depth(alt, mu)[0]) * fraction
+    strength, colour = sun_lamp(irr, wl)
+    return {"elevation_deg": float(pos.elevation_deg), "azimuth_deg": float(pos.azimuth_deg),
+            "strength": float(strength), "colour": tuple(colour),
+            "angle_deg": 2.0 * float(pos.angular_radius_deg), "phase_angle_deg": float(pos.phase_angle_deg),
+            "illuminated_fraction": float(pos.illuminated_fraction), "visible_fraction": fraction,
+            "source": "skymodel.astro"}
+
+
+_MOON_KEYS = ("elevation_deg", "azimuth_deg", "strength", "colour", "angle_deg", "phase_angle_deg",
+              "illuminated_fraction", "visible_fraction")
+
+
+def moon_from_info(info: dict) -> dict | None:
+    """The moon lamp the core's environment render recorded in its info (``info["moon"]``,
+    issue 24's night rendering, also on a cache hit) in :func:`moon_lamp`'s form; None when
+    absent, incomplete or the moon is down."""
+    moon = info.get("moon") if isinstance(info, dict) else None
+    if not isinstance(moon, dict) or not all(k in moon for k in _MOON_KEYS):
+        return None
+    out = {k: (tuple(float(c) for c in moon[k]) if k == "colour" else float(moon[k])) for k in _MOON_KEYS}
+    if not out["strength"] > 0.0:
+        return None
+    out["illuminance_lux"] = 683.0 * out["strength"]
+    out["source"] = "skymodel.render.environment (info['moon'])"
+    return out
+
+
+def moon_lamp(sky: ResolvedSky, above_atmosphere: bool = False) -> dict | None:
+    """The moon as a second lamp for a sky with a date: ``{"elevation_deg", "azimuth_deg"
+    (topocentric, clockwise from north), "strength" (W m^-2 ybar-weighted at the observer,
+    the sun lamp's scale: 1.0 = 683 lux on a surface facing the moon), "colour" (Rec.709,
+    luminance 1), "angle_deg" (apparent diameter), "phase_angle_deg",
+    "illuminated_fraction", "visible_fraction", "illuminance_lux", "source"}``; None
+    without a date or when the moon is below the horizon (no light reaches the observer).
+
+    From the core's :func:`skymodel.render.night.moon_lamp` when it is installed; else
+    from :mod:`skymodel.astro` (:func:`_moon_from_astro`). ``above_atmosphere`` (Volumetric
+    mode, whose volumes attenuate the lamp as they do the sun's): the irradiance above the
+    atmosphere instead (:func:`_moon_above_atmosphere`; the lamp is kept while the disc is
+    within two radii below the horizon, where the ground sphere shades it). No bpy (safe in
+    the build thread)."""
+    if sky.time_iso is None:
+        return None
+    from skymodel.wavelengths import default_wavelengths
+
+    wl = default_wavelengths(MOON_WAVELENGTH_STEP_NM)
+    lat, lon, alt = sky.atmosphere.latitude, sky.atmosphere.longitude, float(sky.params.observer_altitude_m)
+    if above_atmosphere:
+        moon = _moon_above_atmosphere(wl, lat, lon, sky.time_iso)
+        if not moon["strength"] > 0.0:
+            return None
+        moon["illuminance_lux"] = 683.0 * moon["strength"]
+        return moon
+    profile = sky.atmosphere.optical_profile(wl)
+    try:
+        from skymodel.render.night import moon_lamp as core_moon_lamp
+    except ImportError:
+        core_moon_lamp = None
+    if core_moon_lamp is not None:
+        lamp = core_moon_lamp(profile, lat, lon, sky.time_iso, observer_altitude_m=alt)
+        moon = {"elevation_deg": float(lamp.elevation_deg), "azimuth_deg": float(lamp.azimuth_deg),
+                "strength": float(lamp.strength), "colour": tuple(float(c) for c in lamp.colour),
+                "angle_deg": float(lamp.angle_deg), "phase_angle_deg": float(lamp.phase_angle_deg),
+                "illuminated_fraction": float(lamp.illuminated_fraction),
+                "visible_fraction": float(lamp.visible_fraction), "source": "skymodel.render.night"}
+    else:
+        moon = _moon_from_astro(profile, lat, lon, sky.time_iso, alt)
+    if not moon["strength"] > 0.0:
+        return None
+    moon["illuminance_lux"] = 683.0 * moon["strength"]
+    return moon

@@ -107,7 +107,7 @@ REGISTRY_PROPERTIES = {
     "month": ("month", "Month", {}),
     "year": ("year", "Year", {}),
     "day": ("day", "Day", {}),
-    "hour": ("hour", "Hour (UTC)", {}),
+    "hour": ("hour", "Hour", {}),
     "minute": ("minute", "Minute", {}),
     "sun_elevation": ("sun_elevation", "Sun Elevation", {"subtype": 'ANGLE', "unit": 'ROTATION', "precision": 2}),
     "sun_azimuth": ("sun_azimuth", "Sun Azimuth", {"subtype": 'ANGLE', "unit": 'ROTATION', "precision": 2}),
@@ -138,6 +138,27 @@ def angle_degrees(radians: float, name: str) -> float:
     return deg
 
 
+def _sky_changed(self, context):
+    """Update callback of every setting the sky depends on: the live update
+    (:mod:`.live`) queues a rebuild when the World's *Live Update* is on (it never raises)."""
+    from . import live, sunpath
+
+    live.on_change(self, context)
+    sunpath.refresh(self, context)
+
+
+def _live_toggled(self, context):
+    from . import live
+
+    live.on_toggle(self, context)
+
+
+def _sun_path_changed(self, context):
+    from . import sunpath
+
+    sunpath.on_change(self, context)
+
+
 def registry_property(prop_name: str):
     """The bpy property of ``prop_name`` (a key of :data:`REGISTRY_PROPERTIES`), built now
     from the registry entry: default (or the entry's ``suggested`` value for a field that
@@ -147,7 +168,7 @@ def registry_property(prop_name: str):
     a bound)."""
     name, label, ui = REGISTRY_PROPERTIES[prop_name]
     p = scene.parameter(name)
-    ui = dict(ui)
+    ui = dict(ui, update=_sky_changed)
     text = p.help[:1].upper() + p.help[1:] + f" ({p.range_text()})"
     if "items" in ui:
         items = ui.pop("items")()
@@ -180,7 +201,7 @@ _OVERRIDE_ITEMS = [("AUTO", "Auto", "As the effect planner decides"), ("ON", "On
 
 class SkymodelSettings(bpy.types.PropertyGroup):
     # ---- where
-    location_source: EnumProperty(
+    location_source: EnumProperty(update=_sky_changed,
         name="Location", description="A named location preset, or a latitude/longitude of your own",
         items=[("PRESET", "Preset", "A named location (sets latitude, longitude, aerosol type and ground)"),
                ("CUSTOM", "Custom", "Your own latitude and longitude: with Aerosol 'location' the aerosol type and the ground come from the "
@@ -190,12 +211,18 @@ class SkymodelSettings(bpy.types.PropertyGroup):
     latitude: registry_property("latitude")
     longitude: registry_property("longitude")
     # ---- when / sun
-    sun_source: EnumProperty(
+    sun_source: EnumProperty(update=_sky_changed,
         name="Sun", description="Place the sun directly, or from a date and time at the location",
         items=[("ANGLES", "Elevation / Azimuth", "Give the sun's elevation and azimuth"),
-               ("TIME", "Date and Time", "The core places the sun for the date and UTC time at the location")],
+               ("TIME", "Date and Time", "The core places the sun for the date and time (in the Time Zone) at the location")],
         default="ANGLES")
     month: registry_property("month")
+    timezone: StringProperty(
+        update=_sky_changed, name="Time Zone", default="UTC",
+        description="The zone the date and time are read in: an IANA name (Europe/Madrid, daylight saving "
+        "applied), UTC, an offset such as +02:00, or auto (the zone at the place, found offline; needs the "
+        "optional timezonefinder package). A local time skipped or repeated at a daylight-saving change is "
+        "refused, naming it (the core's --timezone)")
     year: registry_property("year")
     day: registry_property("day")
     hour: registry_property("hour")
@@ -203,10 +230,10 @@ class SkymodelSettings(bpy.types.PropertyGroup):
     sun_elevation: registry_property("sun_elevation")
     sun_azimuth: registry_property("sun_azimuth")
     # ---- air
-    aerosol: StringProperty(
+    aerosol: StringProperty(update=_sky_changed,
         name="Aerosol", description="Tropospheric aerosol type; 'location' = the preset's, 'none' = clean air",
         default="location", search=_search_aerosol, search_options={'SORT'})
-    aerosol_amount: EnumProperty(
+    aerosol_amount: EnumProperty(update=_sky_changed,
         name="Amount", description="How much aerosol",
         items=[("DEFAULT", "Type Default", "The number densities of the aerosol type"),
                ("AOD", "AOD 550 nm", "Aerosol optical depth at 550 nm"),
@@ -217,22 +244,22 @@ class SkymodelSettings(bpy.types.PropertyGroup):
     stratospheric: registry_property("stratospheric")
     aerosol_model: registry_property("aerosol_model")
     site_altitude: registry_property("site_altitude")
-    use_ozone: BoolProperty(name="Override Ozone", description="Give the total ozone column yourself",
+    use_ozone: BoolProperty(update=_sky_changed, name="Override Ozone", description="Give the total ozone column yourself",
                             default=False)
     ozone_du: registry_property("ozone_du")
-    use_albedo: BoolProperty(name="Override Albedo", description="Give the ground albedo yourself",
+    use_albedo: BoolProperty(update=_sky_changed, name="Override Albedo", description="Give the ground albedo yourself",
                              default=False)
     albedo: registry_property("albedo")
     observer_altitude: registry_property("observer_altitude")
     # ---- how
-    mode: EnumProperty(
+    mode: EnumProperty(update=_sky_changed,
         name="Mode", description="How the sky enters the scene",
         items=[("AUTO", "Auto", "The effect planner decides from the scene (cameras, farthest object, "
                 "resolution) what to simulate: environment or volume shells, ozone, aerosols, orders, resolution"),
                ("ENVIRONMENT", "Environment", "Spectral sky image as the world + sun lamp (any engine)"),
                ("VOLUMETRIC", "Volumetric", "Nested atmosphere volumes around the planet + sun lamp (Cycles)")],
         default="ENVIRONMENT")
-    sky_model: EnumProperty(
+    sky_model: EnumProperty(update=_sky_changed,
         name="Sky Model", description="Where the Environment image comes from (the sun lamp follows the model)",
         items=[("ours", "Skymodel", "Spectral marcher: Rayleigh, ozone, Mie aerosols, multiple scattering"),
                ("preetham", "Preetham 1999", "Analytic daylight of Preetham, Shirley & Smits (fast; sun above "
@@ -279,9 +306,9 @@ class SkymodelSettings(bpy.types.PropertyGroup):
                ("BESIDE", "Save beside .blend", "Copy the image into a 'skymodel_sky' folder next to the saved "
                 ".blend and link it by a relative path (an unsaved file packs it instead)")],
         default="PACK")
-    set_exposure: BoolProperty(name="Set Exposure", description="Set the view transform (AgX) and the "
+    set_exposure: BoolProperty(update=_sky_changed, name="Set Exposure", description="Set the view transform (AgX) and the "
                                "exposure from the sky's illuminance", default=True)
-    exposure_rule: EnumProperty(
+    exposure_rule: EnumProperty(update=_sky_changed,
         name="Exposure Rule", description="How Build Sky sets the film exposure",
         items=[("SKY", "Keep Sky Colours", "The incident-light rule in daylight; at a low sun and in twilight "
                 "the sky meter (a key that falls with the light, Krawczyk et al. 2005) keeps the sky's colours "
@@ -289,9 +316,26 @@ class SkymodelSettings(bpy.types.PropertyGroup):
                ("INCIDENT", "White Plate at 1", "Incident-light rule only: a white plate lit by sun and sky "
                 "displays at 1, at noon and at dusk alike (dusk skies wash out)")],
         default="SKY")
-    exposure_offset: FloatProperty(
+    exposure_offset: FloatProperty(update=_sky_changed,
         name="Exposure Offset", description="Stops added to the exposure Build Sky sets (your own look on top)",
         min=-16.0, max=16.0, soft_min=-5.0, soft_max=5.0, default=0.0, precision=2, unit='NONE')
+    # ---- live update, sun path, moon
+    live_update: BoolProperty(
+        update=_live_toggled, name="Live Update", default=False,
+        description="Rebuild the sky in the background while you change its settings (Environment mode): a "
+        "preview-quality sky shortly after each change, then the chosen quality once the settings have been still "
+        "for a moment; the sun lamp and the exposure follow. The interface never waits for it")
+    show_sun_path: BoolProperty(
+        update=_sun_path_changed, name="Sun Path", default=False,
+        description="Show the sun's path over the chosen day (Date and Time) in the viewport as a curve, with "
+        "a marker at every hour (local time in the Time Zone); removed when switched off")
+    sun_path_radius: FloatProperty(
+        update=_sun_path_changed, name="Path Radius", description="Radius of the sun path's sphere",
+        min=0.01, max=1e6, soft_max=1000.0, default=10.0, subtype='DISTANCE', unit='LENGTH')
+    moon_lamp: BoolProperty(
+        update=_sky_changed, name="Moon Lamp", default=True,
+        description="With a date and time: a second sun lamp for the moon when it is above the horizon "
+        "(direction, lunar irradiance at the observer, colour and disc size from the core's astro module)")
     # ---- written by the last successful build
     last_build: StringProperty(name="Last Build", default="")
     last_info: StringProperty(name="Info", default="")
@@ -306,6 +350,8 @@ class SkymodelSettings(bpy.types.PropertyGroup):
             longitude_deg=None if preset else angle_degrees(self.longitude, "longitude"),
             month=int(self.month),
             time_utc=(self.year, self.month, self.day, self.hour, self.minute) if self.sun_source == "TIME" else None,
+            timezone=(self.timezone.strip() or None) if self.sun_source == "TIME" else None,
+            moon_lamp=bool(self.moon_lamp) and self.sun_source == "TIME",
             sun_elevation_deg=angle_degrees(self.sun_elevation, "sun_elevation"),
             sun_azimuth_deg=angle_degrees(self.sun_azimuth, "sun_azimuth"),
             aerosol=None if aer.lower() in ("", "location") else aer,

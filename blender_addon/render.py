@@ -74,7 +74,8 @@ def parse_args(argv=None):
     g = ap.add_argument_group("sun")
     g.add_argument("--sun-elevation", type=float, default=None, help=scene.parameter("sun_elevation").help_text())
     g.add_argument("--sun-azimuth", type=float, default=None, help="degrees clockwise from north, default 180")
-    g.add_argument("--time", default=None, help="UTC date-time YYYY-MM-DDTHH:MM (sun placed by the core)")
+    g.add_argument("--time", default=None, help="date-time YYYY-MM-DDTHH:MM, UTC unless --timezone is given "
+                   "(or an offset: +02:00); the sun placed by the core")
     g = ap.add_argument_group("render")
     g.add_argument("--mode", default="environment", choices=["auto", "environment", "volumetric"])
     g.add_argument("--quality", default=scene.default("quality"), choices=list(QUALITIES),
@@ -146,6 +147,8 @@ def check_options(o) -> None:
             raise SkymodelInputError("--time", o.time, f"a date with the year {e.allowed}") from None
         if o.sun_elevation is not None or o.sun_azimuth is not None:
             raise SkymodelInputError("--time", o.time, "either --time or --sun-elevation/--sun-azimuth, not both")
+    elif getattr(o, "timezone", None) is not None and getattr(o, "date", None) is None:
+        raise SkymodelInputError("--timezone", o.timezone, "a time zone only together with --time or --date")
     from skymodel.render.image_io import check_output_path
 
     if getattr(o, "date", None) is not None:  # a day: --out is a folder, the frames checked by the core
@@ -242,6 +245,11 @@ def _apply_options(s, o):
         except ValueError:
             raise SkymodelInputError("time", o.time, "an ISO date-time such as 2026-06-21T19:30") from None
         s.sun_source = "TIME"
+        zone = getattr(o, "timezone", None)
+        if t.tzinfo is not None:  # an explicit offset: the instant in UTC (checked against --timezone)
+            t = scene.resolve_time(o.time, zone).utc.replace(tzinfo=None)
+            zone = "UTC"
+        s.timezone = zone or "UTC"  # without --timezone the time is UTC, as skymodel render's --time
         s.year, s.month, s.day, s.hour, s.minute = t.year, t.month, t.day, t.hour, t.minute
     else:
         s.sun_source = "ANGLES"

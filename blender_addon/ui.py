@@ -33,10 +33,15 @@ def draw_settings(layout, context):
         col.prop(s, "day")
         col.prop(s, "hour")
         col.prop(s, "minute")
+        col.prop(s, "timezone")
+        col.prop(s, "moon_lamp")
     else:
         col.prop(s, "month")
         col.prop(s, "sun_elevation")
         col.prop(s, "sun_azimuth")
+    from . import sunpath
+
+    sunpath.draw_panel(col, s, context.scene)
 
     col = layout.column(align=True)
     col.prop(s, "aerosol_model")
@@ -92,6 +97,9 @@ def draw_settings(layout, context):
                   icon="TIME")
         if not job.cancelled.is_set():
             box.label(text="Esc cancels (the scene stays as it was)")
+    from . import live
+
+    live.draw_panel(layout, s)
     row = layout.row(align=True)
     row.scale_y = 1.4
     row.operator("skymodel.build_sky", icon="WORLD")

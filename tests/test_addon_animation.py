@@ -95,12 +95,26 @@ def test_baked_day_follows_the_frame_and_matches_the_core(day, tmp_path, capsys)
         assert np.array_equal(_pixels(folder / f"sky_{k:04d}.exr"), _pixels(alone.image_path)), k
     # the lamp at the middle frame points where the core puts the sun
     sc.frame_set(2)
-    lamp = next(o for o in sc.objects if o.type == "LIGHT")
+    lamp = bpy.data.objects["Skymodel Sun"]
     bpy.context.view_layer.update()
     to_sun = np.array(lamp.matrix_world.to_3x3().col[2][:])
     el, az = math.radians(frames[1].elevation_deg), math.radians(frames[1].azimuth_deg)
     want = np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)])
     assert math.degrees(math.acos(np.clip(to_sun @ want, -1.0, 1.0))) < 1e-3
+    # the moon (up all evening, half lit) is a second lamp keyframed per frame, from the core
+    from skymodel.astro.moon import moon_position
+
+    moon = bpy.data.objects["Skymodel Moon"]
+    atm = physics.resolve(s.to_params()).atmosphere
+    pos = moon_position(atm.latitude, atm.longitude, frames[1].time_utc.rstrip("Z"))
+    to_moon = np.array(moon.matrix_world.to_3x3().col[2][:])
+    el, az = math.radians(float(pos.elevation_deg)), math.radians(float(pos.azimuth_deg))
+    want = np.array([math.cos(el) * math.sin(az), math.cos(el) * math.cos(az), math.sin(el)])
+    assert math.degrees(math.atan2(np.linalg.norm(np.cross(to_moon, want)), to_moon @ want)) < 1e-3  # float32
+    assert moon.data.energy == pytest.approx(physics.moon_lamp(physics.resolve(s.to_params()))["strength"], rel=1e-5)
+    moon_energy = moon.data.energy
+    sc.frame_set(1)
+    assert moon.data.energy != moon_energy  # keyframed, not constant
     # the exposure and the lamp follow the frames
     exposures, strengths = [], []
     for k in (1, 3):

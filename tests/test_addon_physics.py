@@ -177,3 +177,20 @@ def test_closure_split_keeps_totals_and_luminance_and_gives_one_share_per_specie
     scale = np.array([v["scale"] for v in vol["volumes"]])
     assert np.allclose(inner, split[0] * scale[:, None])
     assert np.all(prof.rayleigh_scattering[1::2] == 0)
+
+
+def test_moon_lamp_from_the_core_info_and_from_astro():
+    """The moon lamp the core's environment render records (issue 24: ``info["moon"]``) is
+    taken as it is; the add-on's own (skymodel.astro) gives the same kind of numbers."""
+    moon = {"elevation_deg": 30.0, "azimuth_deg": 200.0, "strength": 2e-4, "colour": [1.2, 0.95, 0.7],
+            "angle_deg": 0.52, "phase_angle_deg": 10.0, "illuminated_fraction": 0.99, "visible_fraction": 1.0}
+    got = physics.moon_from_info({"moon": moon})
+    assert got["colour"] == (1.2, 0.95, 0.7) and got["illuminance_lux"] == pytest.approx(683 * 2e-4)
+    assert physics.moon_from_info({"moon": dict(moon, strength=0.0)}) is None  # set
+    assert physics.moon_from_info({"moon": {"elevation_deg": 3.0}}) is None and physics.moon_from_info({}) is None
+    sky = physics.resolve(physics.SkyParams(location="zaragoza", time_utc=(2026, 6, 21, 20, 0), timezone="UTC"))
+    lamp = physics.moon_lamp(sky)
+    top = physics.moon_lamp(sky, above_atmosphere=True)
+    assert 30 < lamp["elevation_deg"] < 45 and 0.4 < lamp["illuminated_fraction"] < 0.6
+    assert 0.48 < lamp["angle_deg"] < 0.57 and top["strength"] > lamp["strength"] > 0
+    assert physics.moon_lamp(physics.resolve(physics.SkyParams())) is None  # no date, no moon
