@@ -106,7 +106,7 @@ def test_bad_input_is_refused_before_any_work(tmp_path, capsys):
         (["--date", "2026-06-21", "--dates", "2026-01-01:2026-02-01"], "date"),
         (["--dates", "2026-01-15:2026-12-15", "--every", "1month"], "sun_elevation"),
         (["--dates", "2026-06-15:2026-01-15", "--every", "1month", "--sun-elevation", "-4"], "dates"),
-        (["--dates", "2026-01-15:2026-12-15", "--every", "1month", "--sun-elevation", "-13"], "sun_elevation"),
+        (["--dates", "2026-01-15:2026-12-15", "--every", "1month", "--sun-elevation", "-19"], "sun_elevation"),
         (["--date", "2026-06-21", "--from", "19:00", "--to", "20:00", "--every", "1h", "--month", "3"], "month"),
         (["--date", "2026-06-21", "--from", "19:00", "--to", "22:00", "--every", "1s", "--max-frames", "100"],
          "every"),
