@@ -16,10 +16,14 @@
    the diffuse part integrated over the rendered moonlit sky (cos-weighted).
 3. Dark-sky zenith: a moonless night (2026-01-18 23:00 UTC, Zaragoza), the zenith of the
    rendered image (median of the top row, so no star counts) in V mag/arcsec^2 and ucd/m^2.
+4. What the bounds drop: the sunlit sky at sun -12..-19 deg and the moonlit sky (full moon) at
+   moon 0..-18 deg against the natural glow (rural, June, 550 nm, preview), and what the night's
+   light would add to a sunlit sky at sun 0 deg.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 
@@ -174,12 +178,49 @@ def dark_sky():
           "2016), 22.0 mag/arcsec^2 in V.\n")
 
 
+def bounds():
+    """How much of the sunlit sky is dropped at the sun's bound, and of the moonlit sky at the moon's."""
+    from skymodel.astro.lunar_irradiance import lunar_irradiance
+    from skymodel.astro.night_background import dark_sky_radiance
+    from skymodel.render.marcher import SkyMarcher, solve_sky
+    from skymodel.render.quality import quality_settings
+
+    wl = default_wavelengths(20.0)
+    i = int(np.argmin(np.abs(wl - 550.0)))
+    prof = Atmosphere(location="rural", month=6).optical_profile(wl)
+    sol = solve_sky(prof, quality_settings("preview"))
+    cam = make_camera("equirectangular", 64)
+    d, _ = cam.directions()
+    up = d[..., 2] > 0
+    zen = np.degrees(np.arccos(d[up][:, 2]))
+    glow = dark_sky_radiance(wl, zen)[:, i]
+    zi = int(np.argmin(zen))
+    print("### What the bounds drop\n\nRural, June, preview, 550 nm, 64x32 sky pixels; the natural glow of "
+          "skymodel.astro.night_background (V 21.9 at the zenith).\n")
+    print("| source | elevation | at the zenith / glow | brightest sky pixel / glow | mean / glow |")
+    print("|---|---|---|---|---|")
+    for el in (-12.0, -15.0, -16.0, -17.0, -18.0, -19.0):
+        L = SkyMarcher(prof, el, 180.0, 0.0, solution=sol).radiance(d[up]).radiance[:, i]
+        print(f"| sun | {el:g} | {L[zi] / glow[zi]:.3g} | {(L / glow).max():.3g} | {(L / glow).mean():.3g} |")
+    mprof = dataclasses.replace(prof, solar_irradiance=lunar_irradiance(wl, 7.0))
+    for el in (0.0, -3.0, -6.0, -9.0, -12.0, -18.0):
+        L = SkyMarcher(mprof, el, 180.0, 0.0, solution=sol).radiance(d[up]).radiance[:, i]
+        print(f"| full moon (phase 7) | {el:g} | {L[zi] / glow[zi]:.3g} | {(L / glow).max():.3g} | "
+              f"{(L / glow).mean():.3g} |")
+    # the daytime: what the night's light would add to the sunlit sky at sun 0
+    sky0 = SkyMarcher(prof, 0.0, 180.0, 0.0, solution=sol).radiance(d[up]).radiance[:, i]
+    moon = SkyMarcher(mprof, 90.0, 180.0, 0.0, solution=sol).radiance(d[up]).radiance[:, i]
+    print(f"\nSun at 0 deg: glow / sunlit sky at most {(glow / sky0).max():.2g}; a full moon at the zenith's sky / "
+          f"sunlit sky at most {(moon / sky0).max():.2g}.\n")
+
+
 def main():
     t0 = time.perf_counter()
     cache = SolutionCache(keep=2)
     ks_table(cache)
     illuminance_table(cache)
     dark_sky()
+    bounds()
     print(f"({time.perf_counter() - t0:.0f} s)")
 
 

@@ -23,8 +23,9 @@ What is added to the sunlit sky, for one place and time (docs/night.md):
   horizon is lit by the glow and the stars (Lambertian, the profile's albedo).
 
 Day and night: while the sun is at or above :data:`NIGHT_SUN_BELOW_DEG` (the horizon) only the
-moon's disc is drawn (the daytime moon is visible); the moonlit sky, the stars and the glow are
-under 1e-5 of the sunlit sky there (docs/night.md) and are left out, so a daytime image differs
+moon's disc is drawn (the daytime moon is visible); the moonlit sky (under 2e-4 of the sunlit
+sky at sun 0 in its darkest pixel, a full moon overhead), the stars and the glow (under 2e-6)
+are left out (docs/night.md), so a daytime image differs
 from the sunlit sky alone only in the moon's pixels.
 
 Everything is computed in the caller's channels: a linear ``matrix`` (n_wl, K) applied to every
@@ -58,7 +59,7 @@ __all__ = ["sunlit", "lowest_elevation_deg", "moonlit", "NIGHT_SUN_BELOW_DEG", "
            "night_light", "NIGHT_MODES", "night_active", "night_exposure_offset_ev"]
 
 #: The sun elevation [deg] below which the moonlit sky, the stars and the glow are drawn (above
-#: it they are under 1e-5 of the sunlit sky; the moon's disc is drawn at any sun elevation).
+#: it they are under 2e-4 of the sunlit sky; the moon's disc is drawn at any sun elevation).
 NIGHT_SUN_BELOW_DEG = 0.0
 #: Zenith-angle step [deg] of the transmittance table of the lines of sight.
 TRANSMITTANCE_STEP_DEG = 0.25
