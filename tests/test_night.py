@@ -291,3 +291,25 @@ def test_render_cli_at_night_and_with_night_off(tmp_path, capsys):
     assert main([*base, "--out", str(tmp_path / "n.exr")]) == 0 and (tmp_path / "n.png").is_file()
     assert main([*base, "--night", "off", "--out", str(tmp_path / "off.exr")]) == 2
     assert "time_utc" in capsys.readouterr().err
+
+
+def test_a_daytime_render_differs_from_the_sunlit_sky_only_by_the_moon(tmp_path, monkeypatch):
+    from skymodel.cli.main import main
+    from skymodel.render import image_io
+
+    written = {}
+    real = image_io._prepare_exr
+
+    def spy(path, rgb, *a, **k):
+        written[str(path).rsplit("/", 1)[-1]] = np.array(rgb)
+        return real(path, rgb, *a, **k)
+
+    monkeypatch.setattr(image_io, "_prepare_exr", spy)
+    base = ["render", "--location", "zaragoza", "--size", "32", "--wavelength-step", "50", "--altitudes", "32",
+            "--quiet", "--no-png"]
+    for name, t in (("down", "2026-01-03T12:00:00Z"), ("up", "2026-01-10T09:00:00Z")):  # the moon down, then up
+        for mode in ("auto", "off"):
+            assert main([*base, "--time", t, "--night", mode, "--out", str(tmp_path / f"{name}-{mode}.exr")]) == 0
+    assert np.array_equal(written["down-auto.exr"], written["down-off.exr"])  # bit for bit
+    differ = np.any(written["up-auto.exr"] != written["up-off.exr"], axis=-1)
+    assert 1 <= differ.sum() <= 4  # the daytime moon's pixels, nothing else
