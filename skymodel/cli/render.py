@@ -100,7 +100,7 @@ def cmd_render(args) -> int:
     profile = profile_for_sun(atm, wl, sun)
     # the sunlit sky (skipped below the sun's lowest elevation), then the night's light added
     # before any finish (night: the same solve serves the moonlit sky, from the process's cache)
-    info = {"total_s": 0.0, "orders": 0, "method": "none (the sun below the sunlit sky's bound)"}
+    info = {}
     if args.spectral:
         radiance, xyz = np.zeros(camera.shape + (wl.size,)), None
         if sunlit:
@@ -117,8 +117,12 @@ def cmd_render(args) -> int:
                                               max_memory_gib=limit_gib)
     if not args.quiet:
         print(file=sys.stderr)
-    prog.stage(f"rendered in {info['total_s']:.1f}s ({info['orders']} scattering orders, "
-               f"{info.get('method', 'direct')} method)")
+    if sunlit:
+        prog.stage(f"rendered in {info['total_s']:.1f}s ({info['orders']} scattering orders, "
+                   f"{info.get('method', 'direct')} method)")
+    else:
+        prog.stage(f"no sunlit sky: the sun at {sun.elevation_deg:.1f} deg is below "
+                   f"{night_module.lowest_elevation_deg():g}")
     night_meta, exposure_night = None, 0.0
     if night:
         add, ninfo = night_module.night_light(profile, camera, atm.latitude, atm.longitude, sun.time_utc,
