@@ -131,9 +131,9 @@ def cmd_render(args) -> int:
                                               observer_altitude_m=args.observer_altitude, quality=settings,
                                               include_moon_disc=not args.no_sun, band_pixels=REDUCED_BAND_PIXELS)
         if args.spectral:
-            radiance = radiance + add
+            radiance += add  # in place: no third copy of a spectral cube
         else:
-            xyz = xyz + add
+            xyz += add
         night_meta = ninfo.as_dict()
         prog.stage(f"night: moon at {ninfo.moon_elevation_deg:.1f} deg (phase angle {ninfo.moon_phase_angle_deg:.0f}, "
                    f"{ninfo.moon_illuminance_lux:.3g} lux facing it), moonlit sky "

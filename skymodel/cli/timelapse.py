@@ -366,7 +366,7 @@ def cmd_timelapse(args) -> int:
                     profile, camera, base.latitude, base.longitude, sun.time_utc, None,
                     sun_elevation_deg=sun.elevation_deg, observer_altitude_m=observer, quality=settings,
                     solutions=cache, include_moon_disc=not args.no_sun)
-                radiance = radiance + add
+                radiance += add
             xyz = np.where(valid[..., None], spectral_to_xyz(radiance, wl), 0.0)
             rgb = xyz_to_rgb(xyz, "rec709")
             meta = {"frame": k + 1, "frames": len(frames), "time_utc": sun.time_utc, "time_local": sun.time_local,
