@@ -550,7 +550,11 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
         if solutions is None:
             solutions = solution_cache(folder)
         t_solve = time.perf_counter()
-        solution = solutions.get(prof, settings, progress=_Orders(progress))
+        solution = None
+        if sunlit or night_module.moonlit(night_module.moon_lamp(prof, atmosphere.latitude, atmosphere.longitude,
+                                                                 time_iso, observer_altitude_m).elevation_deg,
+                                          sun_elevation_deg):  # a moonless night needs no solve
+            solution = solutions.get(prof, settings, progress=_Orders(progress))
         solve_s = time.perf_counter() - t_solve
         if not night_on:
             rgb, sun_irradiance, render_info = render_sky.render_sky_reduced(
