@@ -278,9 +278,10 @@ _ALL = [
     _P("sun_elevation", "deg", "elevation of the sun's centre above the horizon (below -18, the end of "
        "astronomical dusk, the sunlit sky is zero: only the night's sources remain, given a --time)",
        default=25.0, minimum=-18.0, maximum=90.0, flag="--sun-elevation"),
-    _P("night", "", "the night's own light with a --time: auto = the stars, the moon's disc and the natural glow "
-       "at any sun elevation and the moonlit sky while the sun is below the horizon (docs/night.md); off = the "
-       "sunlit sky only", default="auto", choices=("auto", "off"), flag="--night"),
+    _P("night", "", "the night's own light with a --time: auto = the moon's disc at any sun elevation, and the "
+       "moonlit sky, the stars and the natural glow while the sun is below the horizon; below -18 the sunlit sky "
+       "is skipped (docs/night.md); off = the sunlit sky only", default="auto", choices=("auto", "off"),
+       flag="--night"),
     _P("sun_azimuth", "deg", "azimuth of the sun, clockwise from north (east 90)", default=180.0,
        minimum=-360.0, maximum=360.0, flag="--sun-azimuth"),
     _P("observer_altitude", "m", "height of the viewpoint above the ground", default=0.0, minimum=0.0,
