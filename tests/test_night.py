@@ -313,3 +313,29 @@ def test_a_daytime_render_differs_from_the_sunlit_sky_only_by_the_moon(tmp_path,
     assert np.array_equal(written["down-auto.exr"], written["down-off.exr"])  # bit for bit
     differ = np.any(written["up-auto.exr"] != written["up-off.exr"], axis=-1)
     assert 1 <= differ.sum() <= 4  # the daytime moon's pixels, nothing else
+
+
+def test_a_moonlit_night_map_and_its_moon_lamp(tmp_path):
+    from skymodel.optics.atmosphere import Atmosphere
+    from skymodel.render.environment import render_environment
+
+    atm = Atmosphere(location="zaragoza", month=1, n_altitudes=32)
+    t = "2026-01-03T21:15:00Z"  # full moon at 45 deg, the sun at -49 (below the sunlit sky's bound)
+    sun = scene.place_sun(atm.latitude, atm.longitude, t, allow_night=True)
+    assert not night.sunlit(sun.elevation_deg)
+    maps = {}
+    for disc in (False, True):
+        rgb, env = render_environment(atm, sun.elevation_deg, sun.azimuth_deg, width=64, time_iso=t,
+                                      wavelength_step_nm=50, cache_dir=tmp_path / str(disc), include_sun=disc)
+        assert np.all(np.isfinite(rgb)) and np.all(rgb >= 0) and math.isfinite(env.exposure)
+        assert env.sun_strength == 0.0 and env.info["night"]["moonlit_sky"]
+        maps[disc] = rgb
+    moon = env.info["moon"]
+    assert 44.5 < moon["elevation_deg"] < 45.5 and moon["strength"] > 0
+    # the lamp mode leaves the disc to the lamp: the maps differ only at the moon's pixels
+    differ = np.any(maps[True] != maps[False], axis=-1)
+    assert 1 <= differ.sum() <= 4
+    # a cache hit returns the same lamp numbers
+    _, again = render_environment(atm, sun.elevation_deg, sun.azimuth_deg, width=64, time_iso=t, wavelength_step_nm=50,
+                                  cache_dir=tmp_path / "True", include_sun=True)
+    assert again.cache_hit and again.info["moon"] == moon
