@@ -10,7 +10,7 @@ number is typed in exactly one place.
 
 >>> from skymodel import scene
 >>> scene.parameter("sun_elevation").range_text()
-'-12..90 deg'
+'-18..90 deg'
 >>> scene.check("month", 13)
 Traceback (most recent call last):
 ...
@@ -97,7 +97,7 @@ class Parameter:
         return not self.choices and (self.minimum is not None or self.maximum is not None)
 
     def range_text(self) -> str:
-        """What is allowed, short: ``'-12..90 deg'``, ``'one of: preview, final, reference'``."""
+        """What is allowed, short: ``'-18..90 deg'``, ``'one of: preview, final, reference'``."""
         if self.choices:
             return "one of: " + ", ".join(self.choices)
         if self.minimum is None and self.maximum is None:
@@ -275,8 +275,13 @@ _ALL = [
     _P("layers", "", "piecewise-constant layers of the atmosphere to print", minimum=1, maximum=64,
        integer=True, flag="--layers", default_note="none"),
     # ---- sun and observer
-    _P("sun_elevation", "deg", "elevation of the sun's centre above the horizon (below -12 the sky is "
-       "night: the end of civil dusk)", default=25.0, minimum=-12.0, maximum=90.0, flag="--sun-elevation"),
+    _P("sun_elevation", "deg", "elevation of the sun's centre above the horizon (below -18, the end of "
+       "astronomical dusk, the sunlit sky is zero: only the night's sources remain, given a --time)",
+       default=25.0, minimum=-18.0, maximum=90.0, flag="--sun-elevation"),
+    _P("night", "", "the night's own light with a --time: auto = the moon's disc at any sun elevation, and the "
+       "moonlit sky, the stars and the natural glow while the sun is below the horizon; below -18 the sunlit sky "
+       "is skipped (docs/night.md); off = the sunlit sky only", default="auto", choices=("auto", "off"),
+       flag="--night"),
     _P("sun_azimuth", "deg", "azimuth of the sun, clockwise from north (east 90)", default=180.0,
        minimum=-360.0, maximum=360.0, flag="--sun-azimuth"),
     _P("observer_altitude", "m", "height of the viewpoint above the ground", default=0.0, minimum=0.0,
@@ -583,7 +588,7 @@ def day_of_year(time_utc) -> int | None:
 
 
 def place_sun(latitude_deg=None, longitude_deg=None, time_utc=None, elevation_deg=None,
-              azimuth_deg=None, timezone=None) -> SunPlacement:
+              azimuth_deg=None, timezone=None, allow_night: bool = False) -> SunPlacement:
     """Place the sun: from a date-time at a place, or from elevation and azimuth.
 
     Parameters
@@ -595,6 +600,11 @@ def place_sun(latitude_deg=None, longitude_deg=None, time_utc=None, elevation_de
         ``Europe/Madrid``, ``UTC``, ``+02:00``, or ``auto``: the zone at the place,
         :func:`zone_at`, reported in the result's ``timezone``); None: UTC. Daylight saving applies;
         a skipped or repeated local time is refused (:func:`resolve_time`).
+    allow_night : with ``time_utc``: False (default) refuses a time when the sun is below the
+        registry's lowest ``sun_elevation`` (-18 deg: night); True returns it with the sun's
+        true elevation (down to -90), for renderers that skip the sunlit sky there and draw
+        the night's own light (:func:`skymodel.render.night.sunlit`). Angles given directly
+        are always checked against the registry.
     elevation_deg : sun elevation [deg]; default the registry's ``sun_elevation``.
     azimuth_deg : sun azimuth [deg] clockwise from north; default the registry's
         ``sun_azimuth``; returned modulo 360.
@@ -627,6 +637,9 @@ def place_sun(latitude_deg=None, longitude_deg=None, time_utc=None, elevation_de
         elev = float(np.asarray(pos.elevation_deg))
         az = float(np.asarray(pos.azimuth_deg))
         dist = float(np.asarray(pos.earth_sun_distance_au))
+        if elev < lowest and allow_night:  # night: the true elevation, below the sunlit sky's bound
+            return SunPlacement(elev, check("sun_azimuth", az) % 360.0, dist, iso, int(iso[5:7]), instant.local_iso,
+                                instant.timezone, day_of_year(iso))
         if elev < lowest:
             raise SkymodelInputError("time_utc", iso, f"a time when the sun is above {lowest:g} degrees "
                                                       f"(it is at {elev:.1f} degrees: night)")

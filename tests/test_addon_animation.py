@@ -237,5 +237,7 @@ def test_headless_entry_renders_a_day(new_sky_scene, small_preview, tmp_path, mo
     assert len(list(out.glob("bake-*/sky_*.exr"))) == 3
     # refused before any work, naming the option
     capsys.readouterr()
-    assert render.main([*day[:6], "--to", "23:59", *day[8:], "--out", str(tmp_path / "night")]) == 2
+    # (a December evening: with the sun's bound at -18 a June 23:59 at Zaragoza is still twilight)
+    assert render.main([*day[:2], "--date", "2026-12-21", *day[4:6], "--to", "23:59", *day[8:],
+                        "--out", str(tmp_path / "night")]) == 2
     assert "time_to=" in capsys.readouterr().err and not (tmp_path / "night").exists()

@@ -40,7 +40,7 @@ def test_every_entry_is_consistent():
 def test_check_names_the_parameter_and_the_range():
     with pytest.raises(SkymodelInputError) as e:
         scene.check("sun_elevation", -20)
-    assert e.value.parameter == "sun_elevation" and "-12..90 deg" in str(e.value)
+    assert e.value.parameter == "sun_elevation" and "-18..90 deg" in str(e.value)
     with pytest.raises(SkymodelInputError, match="layers.*1..64"):
         scene.check("layers", 0)
     with pytest.raises(SkymodelInputError, match="layers"):
@@ -102,6 +102,10 @@ def test_place_sun_from_angles_and_from_a_date():
         scene.place_sun(41.65, -0.88, "2026-06-21T12:00:00Z", elevation_deg=10)
     with pytest.raises(SkymodelInputError, match="time_utc.*night"):
         scene.place_sun(41.65, -0.88, (2026, 6, 21, 0, 0))
+    # allow_night: the true elevation below the bound (the renderers skip the sunlit sky there)
+    n = scene.place_sun(41.65, -0.88, (2026, 6, 21, 0, 0), allow_night=True)
+    assert n.elevation_deg < scene.parameter("sun_elevation").minimum and n.time_utc == "2026-06-21T00:00:00Z"
+    assert scene.place_sun(41.65, -0.88, (2026, 6, 21, 12, 0), allow_night=True) == a
     with pytest.raises(SkymodelInputError) as e:
         scene.place_sun(41.65, -0.88, (2026, 2, 30, 12, 0))
     assert e.value.parameter == "day"
@@ -132,29 +136,29 @@ def test_a_patched_bound_reaches_the_cli_the_api_and_blender(monkeypatch, capsys
     from skymodel.optics.atmosphere import Atmosphere
 
     with pytest.raises(SkymodelInputError):
-        scene.place_sun(elevation_deg=-14.0)
+        scene.place_sun(elevation_deg=-19.0)
     with pytest.raises(SkymodelInputError):
         Atmosphere(turbidity=80.0)
-    patch_parameter(monkeypatch, "sun_elevation", minimum=-15.0)
+    patch_parameter(monkeypatch, "sun_elevation", minimum=-20.0)
     patch_parameter(monkeypatch, "turbidity", maximum=100.0)
     # the CLI: help and parse
     with pytest.raises(SystemExit):
         main(["render", "--help"])
-    assert "-15..90 deg" in " ".join(capsys.readouterr().out.split())
-    args = build_parser().parse_args(["render", "--sun-elevation", "-14", "--turbidity", "80"])
+    assert "-20..90 deg" in " ".join(capsys.readouterr().out.split())
+    args = build_parser().parse_args(["render", "--sun-elevation", "-19", "--turbidity", "80"])
     atm = options.atmosphere_from_args(args)
-    assert options.sun_from_args(args, atm).elevation_deg == -14.0 and atm.turbidity == 80.0
+    assert options.sun_from_args(args, atm).elevation_deg == -19.0 and atm.turbidity == 80.0
     # the Python API
-    assert scene.place_sun(elevation_deg=-14.0).elevation_deg == -14.0
+    assert scene.place_sun(elevation_deg=-19.0).elevation_deg == -19.0
     assert Atmosphere(turbidity=80.0).turbidity == 80.0
     # the Blender add-on: its property definition and its validation
     pytest.importorskip("bpy")
     from blender_addon import physics, props
 
     kw = props.registry_property("sun_elevation").keywords
-    assert kw["min"] == pytest.approx(math.radians(-15.0))
+    assert kw["min"] == pytest.approx(math.radians(-20.0))
     assert props.registry_property("turbidity").keywords["max"] == 100.0
-    assert physics.resolve(physics.SkyParams(sun_elevation_deg=-14.0)).sun_elevation_deg == -14.0
+    assert physics.resolve(physics.SkyParams(sun_elevation_deg=-19.0)).sun_elevation_deg == -19.0
 
 
 def test_a_patched_default_reaches_the_cli_the_api_and_blender(monkeypatch, capsys):
@@ -214,12 +218,13 @@ def _code_lines(path: Path):
 
 
 def _hard_coded(path: Path) -> list[str]:
-    """Lines that type the lowest sun elevation (-12) or the default month (6) as numbers."""
+    """Lines that type the lowest sun elevation (the registry's, -18) or the default month (6) as numbers."""
+    lowest = -float(scene.parameter("sun_elevation").minimum)
     found = []
     rel = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path.name
     for n, toks in _code_lines(path).items():
         for (t0, s0), (t1, s1) in zip(toks, toks[1:]):
-            if s0 == "-" and t1 == tokenize.NUMBER and float(s1) == 12.0:
+            if s0 == "-" and t1 == tokenize.NUMBER and float(s1) == lowest:
                 found.append(f"{rel}:{n}: -{s1}")
         names = [s for t, s in toks if t == tokenize.NAME]
         if any("month" in s for s in names) and any(t == tokenize.NUMBER and s in ("6", "6.0") for t, s in toks):
@@ -249,6 +254,6 @@ def test_no_module_but_scene_types_the_lowest_sun_or_the_default_month(path):
 
 def test_the_scan_finds_what_it_looks_for(tmp_path):
     f = tmp_path / "probe.py"
-    f.write_text('x = check_range("sun_elevation", e, -12.0, 90.0)\nmonth = args.month or 6\ny = 1e-12\n'
-                 '"""-12 in a string"""  # -12 in a comment\n')
-    assert [s.split(": ", 1)[1] for s in _hard_coded(f)] == ["-12.0", "month 6"]
+    f.write_text('x = check_range("sun_elevation", e, -18.0, 90.0)\nmonth = args.month or 6\ny = 1e-18\n'
+                 '"""-18 in a string"""  # -18 in a comment\n')
+    assert [s.split(": ", 1)[1] for s in _hard_coded(f)] == ["-18.0", "month 6"]

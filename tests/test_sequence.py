@@ -89,5 +89,5 @@ def test_reduced_frames_share_the_solve_and_bad_input_is_refused_before_it():
         assert np.array_equal(alone, frame) and np.array_equal(irr_a, irr_f)
     assert cache.stats["solves"] == 1 and info["solve_reused"]
     with pytest.raises(SkymodelInputError, match="sun_elevation"):
-        render_frame(prof, cam, -13.0, 180.0, 0.0, SETTINGS, cache=cache)
+        render_frame(prof, cam, -19.0, 180.0, 0.0, SETTINGS, cache=cache)
     assert cache.stats["solves"] == 1

@@ -57,7 +57,7 @@ def test_a_day_of_three_frames_equals_three_independent_renders(tmp_path, monkey
     written = _capture_exr(monkeypatch)
     out = tmp_path / "day"
     assert main(["timelapse", *TINY, "--date", "2026-06-21", "--from", "20:00", "--to", "22:00", "--every", "1h",
-                 "--timezone", "Europe/Madrid", "--out", str(out)]) == 0
+                 "--timezone", "Europe/Madrid", "--night", "off", "--out", str(out)]) == 0  # the sunlit sky alone
     record = json.loads((out / "frames.json").read_text())
     assert record["complete"] and record["solves"] == 1 and len(record["frames"]) == 3
     wl = default_wavelengths(50.0)
@@ -97,8 +97,8 @@ def test_bad_input_is_refused_before_any_work(tmp_path, capsys):
     cases = [
         (["--date", "2026-03-29", "--from", "02:30", "--to", "04:00", "--every", "10min", "--timezone",
           "Europe/Madrid"], "time_from"),
-        (["--date", "2026-06-21", "--from", "21:00", "--to", "23:30", "--every", "10min", "--timezone",
-          "Europe/Madrid"], "time_to"),
+        (["--date", "2026-12-21", "--from", "17:00", "--to", "21:30", "--every", "10min", "--timezone",
+          "Europe/Madrid", "--night", "off"], "time_to"),  # night without the night's light
         (["--date", "2026-06-21", "--from", "19:00", "--to", "20:00", "--every", "1month"], "every"),
         (["--date", "2026-06-21", "--from", "19:00", "--to", "20:00", "--every", "0min"], "every"),
         (["--date", "2026-06-21", "--from", "19:00", "--to", "20:00"], "every"),
@@ -106,7 +106,7 @@ def test_bad_input_is_refused_before_any_work(tmp_path, capsys):
         (["--date", "2026-06-21", "--dates", "2026-01-01:2026-02-01"], "date"),
         (["--dates", "2026-01-15:2026-12-15", "--every", "1month"], "sun_elevation"),
         (["--dates", "2026-06-15:2026-01-15", "--every", "1month", "--sun-elevation", "-4"], "dates"),
-        (["--dates", "2026-01-15:2026-12-15", "--every", "1month", "--sun-elevation", "-13"], "sun_elevation"),
+        (["--dates", "2026-01-15:2026-12-15", "--every", "1month", "--sun-elevation", "-19"], "sun_elevation"),
         (["--date", "2026-06-21", "--from", "19:00", "--to", "20:00", "--every", "1h", "--month", "3"], "month"),
         (["--date", "2026-06-21", "--from", "19:00", "--to", "22:00", "--every", "1s", "--max-frames", "100"],
          "every"),

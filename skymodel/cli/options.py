@@ -162,10 +162,11 @@ def add_sun_arguments(p: argparse.ArgumentParser, observer: bool = True) -> None
         add_option(g, "observer_altitude")
 
 
-def sun_from_args(args, atm) -> scene.SunPlacement:
-    """The sun of the parsed sun options at the atmosphere's place (:func:`skymodel.scene.place_sun`)."""
+def sun_from_args(args, atm, allow_night: bool = False) -> scene.SunPlacement:
+    """The sun of the parsed sun options at the atmosphere's place (:func:`skymodel.scene.place_sun`;
+    ``allow_night``: a time with the sun below the registry's bound is returned, not refused)."""
     return scene.place_sun(atm.latitude, atm.longitude, args.time_utc, args.sun_elevation, args.sun_azimuth,
-                           timezone=getattr(args, "timezone", None))
+                           timezone=getattr(args, "timezone", None), allow_night=allow_night)
 
 
 def profile_for_sun(atm, wavelengths_nm, sun: scene.SunPlacement):

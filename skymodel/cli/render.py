@@ -5,9 +5,12 @@ from __future__ import annotations
 import sys
 import time
 
+import numpy as np
+
 from skymodel import scene
 from skymodel.cli.options import (add_atmosphere_arguments, add_option, add_sun_arguments, atmosphere_from_args,
                                   profile_for_sun, size, sun_from_args)
+from skymodel.errors import SkymodelInputError
 
 
 #: Pixels whose spectra the colour render holds at once (render_sky_reduced's band).
@@ -31,7 +34,8 @@ def add_command(sub) -> None:
     p.add_argument("--xyz", action="store_true", help="EXR channels X, Y, Z instead of Rec.709 R, G, B")
     add_option(p, "exposure_ev", dest="exposure", default=None)
     add_option(p, "max_memory")
-    p.add_argument("--no-sun", action="store_true", help="leave the solar disc out of the image")
+    p.add_argument("--no-sun", action="store_true", help="leave the solar disc (and the moon's) out of the image")
+    add_option(p, "night", note="stars, moon and glow need --time; below the sun's lowest elevation only they remain")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_render)
 
@@ -58,6 +62,7 @@ def cmd_render(args) -> int:
     from skymodel.render import image_io
     from skymodel.render.cameras import make_camera
     from skymodel.render.memory import check_render_memory
+    from skymodel.render import night as night_module
     from skymodel.render.quality import quality_settings
     from skymodel.render.sky import render_sky, render_sky_reduced
     from skymodel.render.skyview import xyz_reduction
@@ -65,7 +70,13 @@ def cmd_render(args) -> int:
 
     prog = Progress(args.quiet)
     atm = atmosphere_from_args(args)
-    sun = sun_from_args(args, atm)
+    mode = scene.check("night", args.night)
+    sun = sun_from_args(args, atm, allow_night=mode != "off")
+    night = night_module.night_active(mode, sun.time_utc)
+    sunlit = night_module.sunlit(sun.elevation_deg)
+    if not (sunlit or night):
+        raise SkymodelInputError("time_utc", sun.time_utc, f"a time when the sun is above "
+                                 f"{night_module.lowest_elevation_deg():g} degrees, or --night auto (the night's light)")
     quality = scene.check("quality", args.quality)
     settings = quality_settings(quality)
     wl = default_wavelengths(scene.check("wavelength_step", args.wavelength_step))
@@ -87,28 +98,64 @@ def cmd_render(args) -> int:
                f"sun elevation {sun.elevation_deg:.2f}, azimuth {sun.azimuth_deg:.2f}; {camera.name} "
                f"{camera.width}x{camera.height}, {wl.size} wavelengths, quality {quality}")
     profile = profile_for_sun(atm, wl, sun)
+    # the sunlit sky (skipped below the sun's lowest elevation), then the night's light added
+    # before any finish (night: the same solve serves the moonlit sky, from the process's cache)
+    info = {}
     if args.spectral:
-        img = render_sky(profile, camera, sun.elevation_deg, sun.azimuth_deg, args.observer_altitude, settings,
-                         include_sun=not args.no_sun, progress=prog.order, max_memory_gib=limit_gib)
-        radiance, xyz, info = img.radiance, None, img.info
+        radiance, xyz = np.zeros(camera.shape + (wl.size,)), None
+        if sunlit:
+            img = render_sky(profile, camera, sun.elevation_deg, sun.azimuth_deg, args.observer_altitude, settings,
+                             include_sun=not args.no_sun, progress=prog.order, max_memory_gib=limit_gib)
+            radiance, info = img.radiance, img.info
     else:  # straight to CIE XYZ (the sky-view table for large images): no spectral cube
-        xyz, _, info = render_sky_reduced(profile, camera, sun.elevation_deg, xyz_reduction(wl), 3,
-                                          sun.azimuth_deg, args.observer_altitude, settings,
-                                          band_pixels=REDUCED_BAND_PIXELS, progress=prog.order,
-                                          include_sun=not args.no_sun, solutions=False,
-                                          max_memory_gib=limit_gib)
-        radiance = None
+        xyz, radiance = np.zeros(camera.shape + (3,)), None
+        if sunlit:
+            xyz, _, info = render_sky_reduced(profile, camera, sun.elevation_deg, xyz_reduction(wl), 3,
+                                              sun.azimuth_deg, args.observer_altitude, settings,
+                                              band_pixels=REDUCED_BAND_PIXELS, progress=prog.order,
+                                              include_sun=not args.no_sun, solutions=None if night else False,
+                                              max_memory_gib=limit_gib)
     if not args.quiet:
         print(file=sys.stderr)
-    prog.stage(f"rendered in {info['total_s']:.1f}s ({info['orders']} scattering orders, "
-               f"{info.get('method', 'direct')} method)")
+    if sunlit:
+        prog.stage(f"rendered in {info['total_s']:.1f}s ({info['orders']} scattering orders, "
+                   f"{info.get('method', 'direct')} method)")
+    else:
+        prog.stage(f"no sunlit sky: the sun at {sun.elevation_deg:.1f} deg is below "
+                   f"{night_module.lowest_elevation_deg():g}")
+    night_meta, exposure_night = None, 0.0
+    if night:
+        add, ninfo = night_module.night_light(profile, camera, atm.latitude, atm.longitude, sun.time_utc,
+                                              None if args.spectral else xyz_reduction(wl).matrix,
+                                              sun_elevation_deg=sun.elevation_deg,
+                                              observer_altitude_m=args.observer_altitude, quality=settings,
+                                              include_moon_disc=not args.no_sun, band_pixels=REDUCED_BAND_PIXELS)
+        if args.spectral:
+            radiance += add  # in place: no third copy of a spectral cube
+        else:
+            xyz += add
+        night_meta = ninfo.as_dict()
+        prog.stage(f"night: moon at {ninfo.moon_elevation_deg:.1f} deg (phase angle {ninfo.moon_phase_angle_deg:.0f}, "
+                   f"{ninfo.moon_illuminance_lux:.3g} lux facing it), moonlit sky "
+                   f"{'marched' if ninfo.moonlit_sky else 'not marched'}, {ninfo.stars_drawn} stars, "
+                   f"{ninfo.timings['total_s']:.1f}s")
+        # the preview: the night shown darker than the day (night_module.night_exposure_offset_ev)
+        from skymodel.colorimetry import spectral_to_xyz
+
+        y = (spectral_to_xyz(radiance, wl) if args.spectral else xyz)[..., 1]
+        exposure_night = night_module.night_exposure_offset_ev(image_io.auto_exposure_luminance(
+            np.repeat(y[..., None], 3, axis=-1), camera.valid_mask()))
+    if exposure_night and not args.no_png:
+        prog.stage(f"night preview: {exposure_night:+.2f} EV below the automatic exposure")
+        exposure = (exposure or 0.0) + exposure_night
     written = image_io.save_outputs(out=args.out, png=png, spectral=args.spectral, radiance=radiance, xyz=xyz,
                                     wavelengths=wl, camera=camera, exposure_ev=exposure,
                                     colour_space="xyz" if args.xyz else "rec709",
                                     metadata={"atmosphere": profile.metadata, "sun_elevation_deg": sun.elevation_deg,
                                               "sun_azimuth_deg": sun.azimuth_deg, "time_utc": sun.time_utc,
                                               "time_local": sun.time_local, "timezone": sun.timezone,
-                                              "observer_altitude_m": args.observer_altitude, "quality": quality})
+                                              "observer_altitude_m": args.observer_altitude, "quality": quality,
+                                              **({"night": night_meta} if night_meta else {})})
     for path in written.values():
         prog.stage(f"wrote {path}")
     return 0

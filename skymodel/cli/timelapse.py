@@ -26,14 +26,23 @@ Output in the ``--out`` folder:
   rewritten atomically after each frame;
 * once every frame is rendered: ``frame_0001.png`` ... previews at one exposure curve for
   the whole sequence (``--exposure-curve``: ``follow`` keys each frame to its log-average
-  luminance smoothed over 3 frames, so nothing flickers and dusk stays readable;
+  luminance smoothed over 3 frames, so nothing flickers and dusk stays readable, and below
+  a log-average of 3 cd m^-2 opens up by only 3/4 of the stops the light falls, so the night
+  is visible but darker than the day (:func:`skymodel.render.night.night_exposure_offset_ev`);
   ``fixed`` uses one exposure, the geometric mean of the frames' log-averages, so colours
   and brightness compare from frame to frame), ``contact_sheet.png`` and a video
   (``timelapse.mp4`` through ``imageio-ffmpeg`` when installed, else an animated
   ``timelapse.webp`` or ``timelapse.gif`` through Pillow; none without either).
 
-Everything is checked before the first solve (dates, times, step, frame count, every
-frame's sun above the night limit, the output folder). Ctrl-C leaves only finished frames:
+The night (``--night auto``, the default): each frame also gets the night's light of its
+instant (:mod:`skymodel.render.night`: the moon's disc at any sun elevation; the moonlit sky,
+the stars and the natural glow while the sun is below the horizon), and frames with the sun
+below its lowest elevation (-18 degrees) skip the sunlit sky, so a day sequence may run
+through the night (``--from 00:00 --to 23:45``). ``--night off``: the sunlit sky alone, and a
+frame below that elevation is refused.
+
+Everything is checked before the first solve (dates, times, step, frame count, with
+``--night off`` every frame's sun above its lowest elevation, the output folder). Ctrl-C leaves only finished frames:
 each EXR is complete or absent and ``frames.json`` lists exactly those (``"complete":
 false``).
 """
@@ -85,7 +94,9 @@ def add_command(sub) -> None:
     add_option(r, "exposure_curve")
     add_option(r, "frame_rate")
     r.add_argument("--exposure", type=float, default=None, help="PNG exposure in EV added to the curve")
-    r.add_argument("--no-sun", action="store_true", help="leave the solar disc out of the images")
+    r.add_argument("--no-sun", action="store_true", help="leave the solar disc (and the moon's) out of the images")
+    add_option(r, "night", note="with auto a day sequence runs through the night (the sun below its lowest "
+                                "elevation: stars, moon and glow only)")
     p.add_argument("--out", default="frames", help="output folder (created; default frames)")
     p.add_argument("--overwrite", action="store_true", help="write into a folder that holds a previous sequence")
     p.add_argument("--no-video", action="store_true", help="write no video")
@@ -115,7 +126,8 @@ def plan_frames(args, atm) -> tuple[str, list]:
             raise SkymodelInputError("sun_elevation", args.sun_elevation, "no --sun-elevation with --date (the "
                                                                           "sun follows the clock); use --dates")
         return "day", timeline.day_frames(atm.latitude, atm.longitude, args.date, args.time_from, args.time_to,
-                                          args.every, args.timezone, args.max_frames)
+                                          args.every, args.timezone, args.max_frames,
+                                          allow_night=scene.check("night", args.night) != "off")
     if args.sun_elevation is None:
         raise SkymodelInputError("sun_elevation", None, "a sun elevation with --dates (-4 for the paper's twilight)")
     return "days", timeline.days_frames(atm.latitude, atm.longitude, args.dates, args.every, args.sun_elevation,
@@ -288,6 +300,7 @@ def cmd_timelapse(args) -> int:
     from skymodel.render import image_io
     from skymodel.render.cameras import make_camera
     from skymodel.render.quality import quality_settings
+    from skymodel.render import night as night_module
     from skymodel.render.sequence import SolutionCache, render_frame
     from skymodel.wavelengths import default_wavelengths
 
@@ -328,29 +341,42 @@ def cmd_timelapse(args) -> int:
                 "date": args.date, "dates": args.dates, "sun_elevation_deg": args.sun_elevation,
                 "crossing": args.dusk_or_dawn if kind == "days" else None, "camera": camera.describe(),
                 "quality": quality, "wavelength_step_nm": float(args.wavelength_step), "include_sun": not args.no_sun,
-                "observer_altitude_m": observer, "exposure_curve": rule, "frame_rate": fps}
+                "observer_altitude_m": observer, "exposure_curve": rule, "frame_rate": fps,
+                "night": scene.check("night", args.night)}
     record = {"sequence": sequence, "frames": [], "complete": False}
     store_path = folder / f".frames-rgb.{os.getpid()}.tmp.npy"
     store = None
     try:
         store = np.lib.format.open_memmap(store_path, mode="w+", dtype=np.float32,
                                           shape=(len(frames), camera.height, camera.width, 3))
-        valid = camera.directions()[1]
+        directions, valid = camera.directions()
         log_avg = []
         for k, sun in enumerate(frames):
             t0 = time.perf_counter()
             atm = atmosphere_of(sun)
             profile = profile_for_sun(atm, wl, sun)
-            img = render_frame(profile, camera, sun.elevation_deg, sun.azimuth_deg, observer, settings,
-                               include_sun=not args.no_sun, cache=cache)
-            xyz = np.where(valid[..., None], spectral_to_xyz(img.radiance, wl), 0.0)
+            solves = cache.stats["solves"]
+            radiance = np.zeros(camera.shape + (wl.size,))
+            if night_module.sunlit(sun.elevation_deg):  # below the bound the sunlit sky is zero
+                radiance = render_frame(profile, camera, sun.elevation_deg, sun.azimuth_deg, observer, settings,
+                                        include_sun=not args.no_sun, cache=cache).radiance
+            night_info = None
+            if night_module.night_active(args.night, sun.time_utc):
+                add, night_info = night_module.night_light(
+                    profile, camera, base.latitude, base.longitude, sun.time_utc, None,
+                    sun_elevation_deg=sun.elevation_deg, observer_altitude_m=observer, quality=settings,
+                    solutions=cache, include_moon_disc=not args.no_sun)
+                radiance += add
+            xyz = np.where(valid[..., None], spectral_to_xyz(radiance, wl), 0.0)
             rgb = xyz_to_rgb(xyz, "rec709")
             meta = {"frame": k + 1, "frames": len(frames), "time_utc": sun.time_utc, "time_local": sun.time_local,
                     "timezone": sun.timezone, "day_of_year": sun.day_of_year,
                     "sun_elevation_deg": sun.elevation_deg, "sun_azimuth_deg": sun.azimuth_deg,
                     "earth_sun_distance_au": sun.earth_sun_distance_au,
-                    "ozone_du": profile.metadata.get("ozone_du"), "solve_reused": img.info["solve_reused"],
-                    "render_s": round(time.perf_counter() - t0, 3)}
+                    "ozone_du": profile.metadata.get("ozone_du"), "solve_reused": cache.stats["solves"] == solves,
+                    "render_s": round(time.perf_counter() - t0, 3),
+                    **({"night": {k_: v for k_, v in night_info.as_dict().items() if k_ != "timings"}}
+                       if night_info is not None else {})}
             name = FRAME_NAME.format(k + 1)
             header = {"camera": camera.describe(), "colour_space": "rec709", "quality": quality,
                       "observer_altitude_m": observer, "atmosphere": profile.metadata, **meta}
@@ -361,21 +387,25 @@ def cmd_timelapse(args) -> int:
             store[k] = rgb
             log_avg.append(image_io.auto_exposure_luminance(rgb, valid))
             record["frames"].append({"exr": f"{name}.exr", "png": None, **meta, "log_average_luminance": log_avg[-1],
-                                     **zenith_colour(xyz, img.directions, valid)})
+                                     **zenith_colour(xyz, directions, valid)})
             _write_json_atomic(folder / "frames.json", record)
             prog.frame(k + 1, f"{sun.time_local} sun {sun.elevation_deg:.2f} deg "
-                              f"({'solve reused' if img.info['solve_reused'] else 'solved'}, {meta['render_s']:.1f} s)")
+                              f"({'solve reused' if meta['solve_reused'] else 'solved'}, {meta['render_s']:.1f} s)")
         # --- previews at one exposure curve, the contact sheet and the video
         curve = exposure_curve(log_avg, rule)
+        # follow: the night shown darker than the day (night_module.night_exposure_offset_ev of
+        # the smoothed curve: continuous, so no flicker); fixed: one exposure, no offset
+        night_ev = [night_module.night_exposure_offset_ev(c) if rule == "follow" else 0.0 for c in curve]
         previews = []
         for k, entry in enumerate(record["frames"]):
             rgb8 = image_io.tonemap(np.asarray(store[k], dtype=float), args.exposure, valid=valid,
-                                    average_luminance=float(curve[k]))
+                                    average_luminance=float(curve[k] * 2.0 ** -night_ev[k]))
             png = entry["exr"][:-4] + ".png"
             image_io.write_png(folder / png, rgb8, text={"Software": "skymodel", "Comment": entry["time_utc"]})
             entry["png"] = png
             entry["preview_average_luminance"] = float(curve[k])
-            entry["preview_exposure_ev"] = math.log2(0.18 / float(curve[k])) + (args.exposure or 0.0)
+            entry["preview_night_ev"] = float(night_ev[k])
+            entry["preview_exposure_ev"] = math.log2(0.18 / float(curve[k])) + night_ev[k] + (args.exposure or 0.0)
             previews.append(rgb8)
         image_io.write_png(folder / "contact_sheet.png", contact_sheet(previews), text={"Software": "skymodel"})
         record["contact_sheet"] = "contact_sheet.png"

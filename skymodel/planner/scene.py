@@ -68,7 +68,7 @@ class SceneDescription:
     """What the picture needs from the sky.
 
     cameras : one or more :class:`CameraView` (or dicts of their fields).
-    sun_elevation_deg : -12..90 degrees.
+    sun_elevation_deg : degrees, in the registry's ``sun_elevation`` range (-18..90).
     farthest_object_m : distance from the cameras to the farthest visible object, metres
         (0: nothing but the sky).
     sky_visible : True when the sky is seen directly; False when it only lights the scene

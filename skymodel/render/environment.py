@@ -190,11 +190,14 @@ def exposure_from_sky(log_average_y: float) -> float:
     return float(min(max(math.log2(SKY_KEY_SCALE * sky_key(log_average_y) / log_average_y), -32.0), 32.0))
 
 
-def display_exposure(rgb_image, camera, sun_strength: float, sun_elevation_deg: float) -> dict:
+def display_exposure(rgb_image, camera, sun_strength: float, sun_elevation_deg: float,
+                     extra_horizontal_illuminance: float = 0.0) -> dict:
     """The exposure of the module doc: the darker of the incident-light rule and the sky
-    meter. Returns ``{"exposure", "exposure_incident", "exposure_sky",
-    "horizontal_illuminance_Y", "sky_log_average_Y"}`` (stops and colour-scale units)."""
-    e_h = horizontal_illuminance(rgb_image, camera, sun_strength, sun_elevation_deg)
+    meter. ``extra_horizontal_illuminance`` [colour-scale units]: light on the horizontal
+    plane from a lamp not in the image (the moon lamp's). Returns ``{"exposure",
+    "exposure_incident", "exposure_sky", "horizontal_illuminance_Y", "sky_log_average_Y"}``
+    (stops and colour-scale units)."""
+    e_h = horizontal_illuminance(rgb_image, camera, sun_strength, sun_elevation_deg) + float(extra_horizontal_illuminance)
     l_sky = sky_log_average(rgb_image, camera)
     incident, sky = exposure_from_illuminance(e_h), exposure_from_sky(l_sky)
     return {"exposure": min(incident, sky), "exposure_incident": incident, "exposure_sky": sky,
@@ -444,7 +447,7 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
                        quality: str = "preview", width: int = 0, wavelength_step_nm: float | None = None,
                        orders: int | None = None, earth_shadow: bool = True, include_sun: bool = False,
                        time_iso: str | None = None, sky_model: str = OWN_MODEL, model_radiance=None,
-                       cache_dir=None, progress=None, solutions=None):
+                       cache_dir=None, progress=None, solutions=None, night: str = "auto"):
     """Render (or reuse) the equirectangular sky of ``atmosphere`` and the sun.
 
     Parameters
@@ -467,7 +470,17 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
     include_sun : bool
         Draw the sun disc into the image.
     time_iso : str or None
-        Recorded in ``info``.
+        Recorded in ``info``; with ``night`` it places the moon and the stars (at the
+        atmosphere's latitude and longitude).
+    night : str
+        ``auto`` (default; the registry's ``night``): with ``time_iso`` and our model, the
+        night's light of :mod:`skymodel.render.night` is added before the gamut fit (the
+        moonlit sky, stars and glow while the sun is below the horizon; the moon's disc only
+        with ``include_sun``, since a renderer that draws the sun as a lamp draws the moon as
+        one too: ``info["moon"]`` holds :func:`skymodel.render.night.moon_lamp`'s numbers);
+        a sun below the registry's lowest elevation (-18) then renders no sunlit sky.
+        ``off``: the sunlit sky only, as before. A daytime map without ``include_sun`` is
+        the same image either way (nothing is added).
     sky_model, model_radiance
         Another sky model than ours: its name (part of the cache key) and
         ``model_radiance(camera, wavelengths_nm, include_sun) -> (radiance (H, W, n_wl),
@@ -489,12 +502,20 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
     """
     if sky_model != OWN_MODEL and model_radiance is None:
         raise ValueError(f"sky model {sky_model!r} needs model_radiance")
+    from skymodel.render import night as night_module
+
     width = image_width(width, quality)
     step = float(wavelength_step_nm or WAVELENGTH_STEP_NM[quality])
     planned = {"orders": orders, "earth_shadow": earth_shadow} if (orders is not None or not earth_shadow) else {}
+    # the night's light: only where it adds something (a daytime map without the discs is unchanged)
+    night_on = (night_module.night_active(night, time_iso) and sky_model == OWN_MODEL
+                and (include_sun or sun_elevation_deg < night_module.NIGHT_SUN_BELOW_DEG))
+    sunlit = night_module.sunlit(sun_elevation_deg) or not night_on
     key = cache_key(atmosphere, sun_elevation_deg, sun_azimuth_deg, earth_sun_distance_au, observer_altitude_m,
                     quality, "environment", width=width, wavelength_step_nm=step, include_sun=bool(include_sun),
-                    **({"sky_model": sky_model} if sky_model != OWN_MODEL else {}), **planned)
+                    **({"sky_model": sky_model} if sky_model != OWN_MODEL else {}), **planned,
+                    **({"night": {"time_utc": time_iso, "lat": atmosphere.latitude, "lon": atmosphere.longitude}}
+                       if night_on else {}))
     folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     folder.mkdir(parents=True, exist_ok=True)
     exr = folder / f"sky-{key}.exr"
@@ -529,17 +550,40 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
         if solutions is None:
             solutions = solution_cache(folder)
         t_solve = time.perf_counter()
-        solution = solutions.get(prof, settings, progress=_Orders(progress))
+        solution = None
+        if sunlit or night_module.moonlit(night_module.moon_lamp(prof, atmosphere.latitude, atmosphere.longitude,
+                                                                 time_iso, observer_altitude_m).elevation_deg,
+                                          sun_elevation_deg):  # a moonless night needs no solve
+            solution = solutions.get(prof, settings, progress=_Orders(progress))
         solve_s = time.perf_counter() - t_solve
-        rgb, sun_irradiance, render_info = render_sky.render_sky_reduced(
-            prof, cam, sun_elevation_deg, rgb_reduction(wl, finish=fit_into_gamut), 3, sun_azimuth_deg,
-            observer_altitude_m, settings, band_pixels=ENV_BAND_PIXELS, progress=_Orders(progress), solution=solution,
-            include_sun=include_sun)
+        if not night_on:
+            rgb, sun_irradiance, render_info = render_sky.render_sky_reduced(
+                prof, cam, sun_elevation_deg, rgb_reduction(wl, finish=fit_into_gamut), 3, sun_azimuth_deg,
+                observer_altitude_m, settings, band_pixels=ENV_BAND_PIXELS, progress=_Orders(progress),
+                solution=solution, include_sun=include_sun)
+        else:  # sunlit (when the sun is above its bound) + the night's light, then the gamut fit
+            linear = rgb_reduction(wl)
+            rgb, sun_irradiance, render_info = np.zeros(cam.shape + (3,)), np.zeros(wl.size), {"method": None}
+            if sunlit:
+                rgb, sun_irradiance, render_info = render_sky.render_sky_reduced(
+                    prof, cam, sun_elevation_deg, linear, 3, sun_azimuth_deg, observer_altitude_m, settings,
+                    band_pixels=ENV_BAND_PIXELS, progress=_Orders(progress), solution=solution,
+                    include_sun=include_sun)
+            add, night_info = night_module.night_light(
+                prof, cam, atmosphere.latitude, atmosphere.longitude, time_iso, linear.matrix,
+                sun_elevation_deg=sun_elevation_deg, observer_altitude_m=observer_altitude_m, quality=settings,
+                solution=solution, include_moon_disc=include_sun, band_pixels=ENV_BAND_PIXELS)
+            rgb = fit_into_gamut(rgb + add)
+            moon = night_module.moon_lamp(prof, atmosphere.latitude, atmosphere.longitude, time_iso,
+                                          observer_altitude_m)
     else:
         radiance, sun_irradiance = model_radiance(cam, wl, include_sun)
         rgb = reduce_to_rgb(radiance, wl)
     strength, colour = sun_lamp(sun_irradiance, wl)
-    meter = display_exposure(rgb, cam, strength, sun_elevation_deg)
+    moon_h = 0.0
+    if night_on and not include_sun:  # the moon lamp lights the scene as the sun lamp does
+        moon_h = moon.strength * max(math.sin(math.radians(moon.elevation_deg)), 0.0)
+    meter = display_exposure(rgb, cam, strength, sun_elevation_deg, moon_h)
     if not np.all(np.isfinite(rgb)):
         raise FloatingPointError("sky image: non-finite values")
     luma = rgb @ LUMA_709
@@ -560,6 +604,8 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
         "time_utc": time_iso,
         "cache_key": key,
         "sky_model": sky_model,
+        **({"night": {k: v for k, v in night_info.as_dict().items() if k != "timings"}, "moon": moon.lamp()}
+           if night_on else {}),
     }
     if progress:
         progress(f"writing {exr}")

@@ -80,7 +80,7 @@ def add_sun_disc(radiance, directions, valid, solid_angles, sun_dir, irradiance,
 def check_render_arguments(profile, camera, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, quality=None):
     """Validate the arguments of a render before any work: the profile and camera types,
     the sun's elevation and azimuth and the observer's altitude against the registry
-    (:mod:`skymodel.scene`: ``sun_elevation`` -12..90 deg, ``sun_azimuth``, finite) and the
+    (:mod:`skymodel.scene`: ``sun_elevation`` -18..90 deg, ``sun_azimuth``, finite) and the
     quality. Returns ``(sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings)``.
     Raises :class:`~skymodel.errors.SkymodelInputError` naming the parameter."""
     from skymodel.errors import SkymodelInputError
@@ -103,7 +103,8 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
                solutions=None) -> SkyImage:
     """Render ``camera``'s pixels for the atmosphere ``profile`` (smooth or layered).
 
-    ``sun_elevation_deg`` [deg] in -12..90 (below -12 is night: refused, not clamped),
+    ``sun_elevation_deg`` [deg] in the registry's -18..90 (below is night: refused, not clamped;
+    :mod:`skymodel.render.night` skips the sunlit sky there),
     ``sun_azimuth_deg`` [deg], ``observer_altitude_m`` [m]; ``quality``: a preset name, a
     MarchSettings, or None for the default quality (:mod:`skymodel.scene`, ``quality``).
     Every argument is checked before the march (:func:`check_render_arguments`), and the

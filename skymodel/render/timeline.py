@@ -19,8 +19,9 @@ what ``skymodel render --time <that UTC instant>`` gives.
 Every frame is a :class:`~skymodel.scene.SunPlacement` (UTC instant, local time and zone,
 elevation, azimuth, Earth-sun distance, the UTC date's day of the year). Everything is
 checked here, before any rendering: the step, the dates, the number of frames against the
-registry's ``max_frames``, and every frame's sun above the night limit (a frame at night
-is refused naming its local time).
+registry's ``max_frames``, and every frame's sun above the sunlit sky's lowest elevation
+(a frame below it is refused naming its local time, unless the sequence draws the night:
+``allow_night``).
 """
 
 from __future__ import annotations
@@ -103,9 +104,11 @@ def _count_check(n: int, max_frames) -> None:
                                                          "a shorter span, or --max-frames)")
 
 
-def _place(latitude_deg, longitude_deg, instant: scene.Instant, timezone, k: int, n: int) -> scene.SunPlacement:
+def _place(latitude_deg, longitude_deg, instant: scene.Instant, timezone, k: int, n: int,
+           allow_night: bool = False) -> scene.SunPlacement:
     try:
-        return scene.place_sun(latitude_deg, longitude_deg, instant.local_iso, timezone=timezone or "UTC")
+        return scene.place_sun(latitude_deg, longitude_deg, instant.local_iso, timezone=timezone or "UTC",
+                               allow_night=allow_night)
     except SkymodelInputError as exc:
         if exc.parameter != "time_utc":
             raise
@@ -114,10 +117,13 @@ def _place(latitude_deg, longitude_deg, instant: scene.Instant, timezone, k: int
 
 
 def day_frames(latitude_deg, longitude_deg, date, time_from, time_to, every, timezone=None,
-               max_frames=None) -> list[scene.SunPlacement]:
+               max_frames=None, allow_night: bool = False) -> list[scene.SunPlacement]:
     """The frames of one day: ``date`` (ISO text) from ``time_from`` to ``time_to`` (local
     ``HH:MM`` in ``timezone``; None: UTC) every ``every`` (``10min``). ``time_to`` is
-    included when the step lands on it. Raises naming the parameter at fault."""
+    included when the step lands on it. ``allow_night``: frames with the sun below the
+    registry's lowest elevation are kept (their true elevation; the renderer skips the sunlit
+    sky and draws the night's light, :mod:`skymodel.render.night`) instead of refused. Raises
+    naming the parameter at fault."""
     timezone = scene.place_zone(timezone, latitude_deg, longitude_deg)
     kind, step = parse_every(every)
     if kind != "seconds":
@@ -136,7 +142,7 @@ def day_frames(latitude_deg, longitude_deg, date, time_from, time_to, every, tim
     for k in range(n):
         utc = start.utc + _dt.timedelta(seconds=k * step)
         instant = scene.Instant(utc, utc.astimezone(tz), start.timezone)
-        out.append(_place(latitude_deg, longitude_deg, instant, timezone, k, n))
+        out.append(_place(latitude_deg, longitude_deg, instant, timezone, k, n, allow_night))
     return out
 
 
