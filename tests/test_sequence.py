@@ -91,3 +91,49 @@ def test_reduced_frames_share_the_solve_and_bad_input_is_refused_before_it():
     with pytest.raises(SkymodelInputError, match="sun_elevation"):
         render_frame(prof, cam, -19.0, 180.0, 0.0, SETTINGS, cache=cache)
     assert cache.stats["solves"] == 1
+
+
+
+def test_memory_cache_is_safe_under_threads(monkeypatch):
+    """The add-on reads the cache from a new build's thread while a cancelled build's thread
+    may store into it: with keep=1 and two keys alternating, every get returns the solution
+    of its own key and nothing raises. The dictionary's move_to_end sleeps, which widens the
+    window in which a get without the lock (check, move, read) lost its key to the other
+    thread's eviction (KeyError in 3 of 3 runs without the lock)."""
+    import threading
+    import time as _time
+    from collections import OrderedDict
+
+    import skymodel.render.sequence as seq
+
+    class Sol:
+        def __init__(self, key):
+            self.key = key
+
+    class SlowDict(OrderedDict):
+        def move_to_end(self, key, last=True):
+            _time.sleep(0.0005)
+            super().move_to_end(key, last)
+
+    monkeypatch.setattr(seq, "optics_key", lambda profile, s: profile)
+    monkeypatch.setattr(seq, "solve_sky", lambda profile, s, progress=None: Sol(profile))
+    cache = SolutionCache(keep=1)
+    cache._memory = SlowDict()
+    errors, wrong = [], []
+
+    def work(keys):
+        try:
+            for k in keys:
+                if cache.get(k, "preview").key != k:
+                    wrong.append(k)
+        except Exception as exc:  # the failure this test looks for
+            errors.append(exc)
+
+    threads = [threading.Thread(target=work, args=(["a", "a", "b"] * 100,)),
+               threading.Thread(target=work, args=(["b", "b", "a"] * 100,))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors and not wrong, (errors[:1], wrong[:3])
+    assert cache.stats["memory_hits"] + cache.stats["solves"] == 600

@@ -22,6 +22,7 @@ from __future__ import annotations
 import os
 import pickle
 import tempfile
+import threading
 import time
 from collections import OrderedDict
 from pathlib import Path
@@ -46,6 +47,9 @@ class SolutionCache:
         self.folder = None if folder is None else Path(folder)
         self.keep = max(1, int(keep))
         self._memory: OrderedDict[str, SkySolution] = OrderedDict()
+        # the add-on's builds run in threads (a cancelled one may finish while the next reads):
+        # the memory dictionary is read and changed under this lock; solving and disk I/O are not
+        self._lock = threading.Lock()
         self.stats = {"solves": 0, "memory_hits": 0, "disk_hits": 0, "corrupt": 0, "solve_s": 0.0}
 
     def path(self, key: str) -> Path | None:
@@ -90,10 +94,12 @@ class SolutionCache:
         from memory, from disk, or solved now (and stored)."""
         s = quality_settings(settings)
         key = optics_key(profile, s)
-        if key in self._memory:
-            self._memory.move_to_end(key)
-            self.stats["memory_hits"] += 1
-            return self._memory[key]
+        with self._lock:
+            sol = self._memory.get(key)
+            if sol is not None:
+                self._memory.move_to_end(key)
+                self.stats["memory_hits"] += 1
+                return sol
         sol = self._load(key)
         if sol is not None:
             self.stats["disk_hits"] += 1
@@ -103,9 +109,11 @@ class SolutionCache:
             self.stats["solves"] += 1
             self.stats["solve_s"] += time.perf_counter() - t0
             self._store(sol)
-        self._memory[key] = sol
-        while len(self._memory) > self.keep:
-            self._memory.popitem(last=False)
+        with self._lock:
+            self._memory[key] = sol
+            self._memory.move_to_end(key)
+            while len(self._memory) > self.keep:
+                self._memory.popitem(last=False)
         return sol
 
 
