@@ -352,8 +352,10 @@ class SkyMarcher:
         step = max(1, min(self.settings.chunk, MARCH_PIECE) // n)
         return _in_threads(lambda i: self._exact(d[i:i + step]), range(0, d.shape[0], step), n)
 
-    def _from_grid(self, d):
-        sky, ground, az, images = self._grid
+    def _grid_cells(self, d):
+        """For directions d (N, 3): per side of the horizon (sky, ground) the mask of the
+        directions on it and their bilinear cells in the direction grid (i, fz, j, fa)."""
+        sky, ground, az, _ = self._grid
         zen = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
         sun_h = self.sun[:2]
         dh = d[:, :2]
@@ -361,17 +363,26 @@ class SkyMarcher:
         c = np.where(nrm > 1e-12, (dh @ sun_h) / np.where(nrm > 1e-12, nrm, 1.0), 1.0)
         rel = np.arccos(np.clip(c, -1.0, 1.0))
         th = self.horizon_zenith_rad()
-        n_comp = len(images[0])
-        out = [np.empty((d.shape[0], images[0][k].shape[-1])) for k in range(n_comp)]
-        for mask, axis, imgs in ((zen < th, sky, images[0]), (zen >= th, ground, images[1])):
-            if not np.any(mask):
-                continue
+        cells = []
+        for mask, axis in ((zen < th, sky), (zen >= th, ground)):
             z = np.clip(zen[mask], axis[0], axis[-1])
             i = np.clip(np.searchsorted(axis, z, side="right") - 1, 0, axis.size - 2)
             fz = ((z - axis[i]) / (axis[i + 1] - axis[i]))[:, None]
             a = rel[mask]
             j = np.clip(np.searchsorted(az, a, side="right") - 1, 0, az.size - 2)
             fa = ((a - az[j]) / (az[j + 1] - az[j]))[:, None]
+            cells.append((mask, i, fz, j, fa))
+        return cells
+
+    def _from_grid(self, d, images=None):
+        """Each image of ``images`` (per side of the horizon, a tuple of (n_zen, n_az, K)
+        arrays; default the grid's (single, multiple, ground)) interpolated bilinearly at
+        directions d (N, 3): a list of (N, K) arrays."""
+        images = self._grid[3] if images is None else images
+        out = [np.empty((d.shape[0], img.shape[-1])) for img in images[0]]
+        for (mask, i, fz, j, fa), imgs in zip(self._grid_cells(d), images):
+            if not np.any(mask):
+                continue
             for k, img in enumerate(imgs):
                 out[k][mask] = ((img[i, j] * (1 - fa) + img[i, j + 1] * fa) * (1 - fz)
                                 + (img[i + 1, j] * (1 - fa) + img[i + 1, j + 1] * fa) * fz)
@@ -465,31 +476,74 @@ class SkyMarcher:
         prof = self.profile
         if self.observer_altitude_m >= self.top:
             d = self.sun[None, :]
-            rings = self._rings(d)
+            rings = self._rings(d[:, 2])
             tau = (self.medium.extinction.at(rings.h) * rings.dt[..., None]).sum(axis=1)[0]
             blocked = bool(rings.hits[0])
             return np.zeros_like(prof.solar_irradiance) if blocked else prof.solar_irradiance * np.exp(-tau)
         t_sun = self.sun_table.transmittance(np.array([self.observer_altitude_m]), np.array([self.sun[2]]))[0]
         return prof.solar_irradiance * t_sun
 
-    def radiance(self, directions) -> SkyRadiance:
-        """Sky radiance (without the solar disc) looking along ``directions`` (N, 3)."""
+    @staticmethod
+    def _unit(directions):
         d = np.asarray(directions, dtype=float).reshape(-1, 3)
         nrm = np.linalg.norm(d, axis=1, keepdims=True)
         if np.any(~np.isfinite(d)) or np.any(nrm < 1e-12):
             raise SkymodelInputError("directions", "non-finite or zero vectors", "unit vectors (N, 3)")
-        d = d / nrm
+        return d / nrm
+
+    def _near_sun(self, d):
+        """Indices of the directions d (N, 3) that are marched exactly with a grid: those
+        within ``settings.sun_exact_deg`` of the sun."""
+        return np.nonzero(d @ self.sun > np.cos(np.radians(self.settings.sun_exact_deg)))[0]
+
+    def _exact_parts(self, d):
+        """(single, multiple, ground) of directions d (N, 3), every one marched
+        (:meth:`exact_in_threads`)."""
+        if d.shape[0] == 0:
+            return tuple(np.zeros((0, self.profile.wavelengths_nm.size)) for _ in range(3))
+        return tuple(np.concatenate(c) for c in zip(*self.exact_in_threads(d)))
+
+    def total_radiance(self, directions, matrix=None) -> np.ndarray:
+        """The total radiance (single + multiple + ground, without the solar disc) looking
+        along ``directions`` (N, 3): (N, n_wl), or times ``matrix`` (n_wl, K), a linear
+        reduction such as CIE XYZ. What ``radiance(directions).radiance @ matrix`` gives
+        up to rounding, cheaper: on the direction grid the total, reduced once per marcher
+        and matrix, is interpolated instead of the three spectral components."""
+        d = self._unit(directions)
+        if self._grid is None:
+            total = sum(self._exact_parts(d))
+            return total if matrix is None else total @ matrix
+        out = self._from_grid(d, self._grid_total(matrix))[0]
+        near = self._near_sun(d)
+        if near.size:
+            exact = sum(self._exact_parts(d[near]))
+            out[near] = exact if matrix is None else exact @ matrix
+        check_finite("radiance", out)
+        return out
+
+    def _grid_total(self, matrix):
+        """The grid's total radiance images times ``matrix`` (None: the spectra), per side of
+        the horizon; the last one is kept."""
+        cached = getattr(self, "_total_images", None)
+        if cached is not None and (cached[0] is matrix or (matrix is not None and cached[0] is not None
+                                                           and np.array_equal(cached[0], matrix))):
+            return cached[1]
+        images = [(sum(imgs) if matrix is None else sum(imgs) @ matrix,) for imgs in self._grid[3]]
+        self._total_images = (matrix, images)
+        return images
+
+    def radiance(self, directions) -> SkyRadiance:
+        """Sky radiance (without the solar disc) looking along ``directions`` (N, 3)."""
+        d = self._unit(directions)
         prof = self.profile
         t_start = time.perf_counter()
         if self._grid is None:
-            parts = [self._exact(d[i:i + self.settings.chunk]) for i in range(0, d.shape[0], self.settings.chunk)]
-            single, multiple, ground = (np.concatenate(c) for c in zip(*parts))
+            single, multiple, ground = self._exact_parts(d)
         else:
             single, multiple, ground = self._from_grid(d)
-            near = np.nonzero(d @ self.sun > np.cos(np.radians(self.settings.sun_exact_deg)))[0]
-            for i in range(0, near.size, self.settings.chunk):  # in chunks: memory ~ chunk
-                idx = near[i:i + self.settings.chunk]
-                single[idx], multiple[idx], ground[idx] = self._exact(d[idx])
+            near = self._near_sun(d)
+            if near.size:
+                single[near], multiple[near], ground[near] = self._exact_parts(d[near])
         info = {"orders": self.field.orders, "order_contributions": list(self.field.order_contributions),
                 "timings": dict(self.timings, directions_s=time.perf_counter() - t_start),
                 "settings": self.settings}
@@ -498,10 +552,13 @@ class SkyMarcher:
         return res
 
     # ---------------------------------------------------------------- marching
-    def _rings(self, d0):
-        """View-ray samples of directions d0 (G, 3). The observer is on the z axis, so
-        they depend only on each direction's zenith angle: one set serves every direction
-        of a ring of the direction grid (:class:`_Rings`)."""
+    def _rings(self, cos_zenith):
+        """View-ray samples of rings of directions with the zenith cosines ``cos_zenith``
+        (G,). The observer is on the z axis, so they depend only on the zenith angle: one
+        set serves every direction of a ring (:class:`_Rings`), computed for the ring's
+        direction of azimuth 90 degrees, so it never depends on which directions share it."""
+        cz = np.asarray(cos_zenith, dtype=float)
+        d0 = np.stack([np.sqrt(np.clip(1.0 - cz * cz, 0.0, None)), np.zeros_like(cz), cz], axis=-1)
         p = np.broadcast_to(self.origin, d0.shape)
         t0, t1, hits = atmosphere_segment(p, d0, self.R, self.R + self.top)
         t, dt = march_samples(p, d0, t0, t1, self.settings.view_steps, self.R)
@@ -531,7 +588,7 @@ class SkyMarcher:
         E_sun [p_R(cos) sum_s T t_sun sigma_R dt + sum_r p_r(cos) sum_s T t_sun sigma_r dt]."""
         prof, med = self.profile, self.medium
         e_sun = prof.solar_irradiance
-        rings = self._rings(D[:, 0, :])
+        rings = self._rings(D[:, 0, 2])
         regimes = [reg for reg, lr in enumerate(med.aerosol) if np.any(lr.weights)]
         lrs = [med.extinction, med.extinction_scaled, med.rayleigh] + [med.aerosol[reg] for reg in regimes]
         ext, ext_s, ray, *aers = evaluate_many(lrs, rings.h)  # each (G, S, W)
@@ -602,8 +659,30 @@ class SkyMarcher:
     def _exact(self, d):
         """(single, multiple, ground) radiance for directions d (N, 3), every one
         marched: single scattering and direct-sun ground light at every wavelength, the
-        multiple-scattering source gathered at the solver wavelengths."""
-        return tuple(c[:, 0, :] for c in self._march(np.asarray(d, float)[:, None, :]))
+        multiple-scattering source gathered at the solver wavelengths. Directions with
+        the same zenith cosine (a row of an equirectangular image) are marched as one
+        ring (:meth:`_march`), padded to the longest ring with repeats of its last
+        direction when that adds at most half again; else each is a ring of its own.
+        A direction's values never depend on the others (the rings' samples depend
+        only on the zenith cosine)."""
+        d = np.asarray(d, float)
+        n = d.shape[0]
+        order = np.argsort(d[:, 2], kind="stable")
+        dz = d[order, 2]
+        starts = np.flatnonzero(np.r_[True, dz[1:] != dz[:-1]]) if n else np.zeros(0, int)
+        counts = np.diff(np.r_[starts, n])
+        longest = int(counts.max()) if n else 0
+        if longest <= 1 or starts.size * longest > 1.5 * n:
+            return tuple(c[:, 0, :] for c in self._march(d[:, None, :]))
+        pos = np.arange(longest)
+        idx = order[starts[:, None] + np.minimum(pos, counts[:, None] - 1)]  # (G, longest)
+        real = pos < counts[:, None]
+        out = []
+        for c in self._march(d[idx]):
+            full = np.empty((n, c.shape[-1]))
+            full[idx[real]] = c[real]
+            out.append(full)
+        return tuple(out)
 
 
 @dataclass(frozen=True)

@@ -294,9 +294,8 @@ def _pixels(marcher, dirs, valid, reduction, n_channels: int, band_pixels, metho
         idx = sel[start:start + band]
         if table is not None:
             part = table.lookup(flat[idx])
-        else:
-            res = marcher.radiance(flat[idx])
-            part = red.linear(res.radiance)
+        else:  # the grid's total, reduced once, or marched (= red.linear(marcher.radiance(..).radiance))
+            part = marcher.total_radiance(flat[idx], red.matrix)
         if disc_at:
             hit = np.nonzero(np.isin(idx, list(disc_at)))[0]
             for k in hit:
