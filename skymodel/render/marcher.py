@@ -67,10 +67,12 @@ from skymodel.scene import parameter
 
 #: Highest observer altitude, metres (the registry's bound: skymodel.scene).
 MAX_OBSERVER_ALTITUDE_M = parameter("observer_altitude").maximum
-#: Threads marching the direction grid's chunks (:meth:`SkyMarcher.exact_in_threads`).
+#: Threads marching the direction grid's pieces of rings (:meth:`SkyMarcher._build_grid`) and
+#: other directions' chunks (:meth:`SkyMarcher.exact_in_threads`).
 MARCH_THREADS = min(2, os.cpu_count() or 1)
 #: Directions marched at once by all the threads together: at most ~0.45 GB of working
-#: arrays at 81 wavelengths and 64 view steps (MarchSettings.chunk, 2048, would be ~0.9 GB).
+#: arrays at 81 wavelengths and 64 view steps (MarchSettings.chunk, 2048, would be ~0.9 GB);
+#: up to 1.5 times that where :meth:`SkyMarcher._exact` pads rings of equal zenith angle.
 MARCH_PIECE = 1024
 #: Largest peak optical depth (sun path + view path) the aureole table covers; beyond
 #: it the light is spread over tens of degrees and the table's last column is used.
