@@ -256,3 +256,14 @@ def test_describe_is_json_friendly():
     desc = json.loads(json.dumps(cam.describe()))
     assert desc == {"camera": "dome", "width": 90, "height": 24, "center_azimuth_deg": 180.0,
                     "below_horizon_deg": 5.0}
+
+
+@pytest.mark.parametrize("name", ["equirectangular", "dome", "fisheye"])
+def test_directions_of_a_band_of_rows_are_those_of_the_whole_image(name):
+    """Large renders look up their pixels by bands of rows (``Camera.directions_rows``)."""
+    cam = make_camera(name, 64)
+    d, valid = cam.directions()
+    for start, stop in ((0, 1), (3, 17), (cam.height - 5, cam.height)):
+        dr, vr = cam.directions_rows(start, stop)
+        np.testing.assert_array_equal(dr, d[start:stop])
+        np.testing.assert_array_equal(vr, valid[start:stop])

@@ -76,3 +76,22 @@ def test_render_sky_reduced_checks_render_skys_memory_estimate_before_any_work(c
     with pytest.raises(SkymodelInputError, match="max_memory"):
         render_sky_reduced(prof, make_camera("equirectangular", 8192, n_wavelengths=3), 20.0,
                            lambda r, w: spectral_to_rgb(r, w), 3, quality="final", band_pixels=1 << 20)
+
+
+@pytest.mark.parametrize("name, sun_el, sun_az", [("equirectangular", 20.0, 150.0), ("equirectangular", 89.9, 10.0),
+                                                  ("fisheye", 30.0, 200.0), ("fisheye", -5.0, 200.0),
+                                                  ("dome", 0.2, 90.0)])
+def test_sun_disc_found_by_bands_of_rows_is_the_whole_images(name, sun_el, sun_az):
+    """render_sky_reduced finds the disc's pixels by bands of rows (never every direction at once)."""
+    from skymodel.render.rays import sun_direction
+    from skymodel.render.sky import _sun_disc_of_camera, sun_disc_spectra
+
+    cam = make_camera(name, 200)
+    wl = np.array([450.0, 550.0, 650.0])
+    irr = np.array([1.0, 2.0, 3.0])
+    s = sun_direction(sun_el, sun_az)
+    d, valid = cam.directions()
+    mask, spectra = sun_disc_spectra(d, valid, cam.pixel_solid_angles(), s, irr, wl)
+    mask_b, spectra_b = _sun_disc_of_camera(cam, s, irr, wl, rows=7)
+    np.testing.assert_array_equal(mask_b, mask)
+    np.testing.assert_array_equal(spectra_b, spectra)

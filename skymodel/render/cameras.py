@@ -183,6 +183,13 @@ class Camera:
         writers need: a 4096x2048 panorama's directions are 0.2 GiB)."""
         return self.directions()[1]
 
+    def directions_rows(self, start: int, stop: int):
+        """``directions()`` of the rows ``start:stop`` only: (stop - start, W, 3) and the mask
+        (stop - start, W); the panoramas compute just those rows (the lookup of a large image
+        goes by bands of rows and never holds every pixel's direction)."""
+        d, valid = self.directions()
+        return d[start:stop], valid[start:stop]
+
     def pixel_solid_angles(self):
         """Solid angle (sr) represented by each pixel, (H, W); 0 where masked."""
         raise NotImplementedError
@@ -216,6 +223,11 @@ class _PanoramaCamera(Camera):
         az = self._column_azimuths()
         d = direction_from_angles(zen[:, None], az[None, :])
         return d, np.ones(self.shape, dtype=bool)
+
+    def directions_rows(self, start: int, stop: int):
+        zen = self._row_zeniths()[start:stop]
+        d = direction_from_angles(zen[:, None], self._column_azimuths()[None, :])
+        return d, np.ones(d.shape[:2], dtype=bool)
 
     def valid_mask(self):
         return np.ones(self.shape, dtype=bool)

@@ -39,6 +39,13 @@ Single scattering and the ground are evaluated for every direction at every wave
 the multiple-scattering part is gathered on a grid of view directions (zenith angle x
 azimuth from the sun, split at the observer's horizon so the sky/ground edge stays sharp)
 and interpolated, since it varies slowly across the sky.
+
+The observer stands on the z axis, so a view ray's samples, the medium along them and the
+transmittance back to the observer depend only on the ray's zenith angle: the direction
+grid's rows (rings of equal zenith angle) share them, and per direction only what depends
+on the sun is computed (the transmittance toward the sun at each sample, the phase
+functions, the multiple-scattering source, the peak aureole); single scattering is a sum
+of column integrals, one per scatterer, times its phase function (:meth:`SkyMarcher._march`).
 """
 
 from __future__ import annotations
@@ -60,10 +67,12 @@ from skymodel.scene import parameter
 
 #: Highest observer altitude, metres (the registry's bound: skymodel.scene).
 MAX_OBSERVER_ALTITUDE_M = parameter("observer_altitude").maximum
-#: Threads marching the direction grid's chunks (:meth:`SkyMarcher.exact_in_threads`).
+#: Threads marching the direction grid's pieces of rings (:meth:`SkyMarcher._build_grid`) and
+#: other directions' chunks (:meth:`SkyMarcher.exact_in_threads`).
 MARCH_THREADS = min(2, os.cpu_count() or 1)
 #: Directions marched at once by all the threads together: at most ~0.45 GB of working
-#: arrays at 81 wavelengths and 64 view steps (MarchSettings.chunk, 2048, would be ~0.9 GB).
+#: arrays at 81 wavelengths and 64 view steps (MarchSettings.chunk, 2048, would be ~0.9 GB);
+#: up to 1.5 times that where :meth:`SkyMarcher._exact` pads rings of equal zenith angle.
 MARCH_PIECE = 1024
 #: Largest peak optical depth (sun path + view path) the aureole table covers; beyond
 #: it the light is spread over tens of degrees and the table's last column is used.
@@ -298,25 +307,6 @@ class SkyMarcher:
         self.timings["direction_grid_s"] = time.perf_counter() - t2
 
     # ---------------------------------------------------------------- helpers
-    def _samples(self, d):
-        p = np.broadcast_to(self.origin, d.shape)
-        t0, t1, hits = atmosphere_segment(p, d, self.R, self.R + self.top)
-        t, dt = march_samples(p, d, t0, t1, self.settings.view_steps, self.R)
-        h = altitude_along(p, d, t, self.R)
-        x = p[:, None, :] + t[..., None] * d[:, None, :]
-        r = np.linalg.norm(x, axis=-1)
-        up = x / r[..., None]
-        return t, dt, np.maximum(h, 0.0), up, hits, t1
-
-    def _relative_azimuth(self, up, v):
-        """Azimuth (rad, 0..pi) between v and the sun around the local vertical ``up``."""
-        mu = np.einsum("...i,i->...", up, v) if v.ndim == 1 else np.einsum("...i,...i->...", up, v)
-        mus = up @ self.sun
-        vs = (v @ self.sun) if v.ndim == 1 else np.einsum("...i,i->...", v, self.sun)
-        den = np.sqrt(np.clip((1 - mu * mu) * (1 - mus * mus), 0.0, None))
-        c = np.where(den > 1e-12, (vs - mu * mus) / np.where(den > 1e-12, den, 1.0), 1.0)
-        return mu, mus, np.arccos(np.clip(c, -1.0, 1.0))
-
     def horizon_zenith_rad(self) -> float:
         """Zenith angle of the observer's geometric horizon (> pi/2 above the ground)."""
         return np.pi - np.arcsin(min(1.0, self.R / (self.R + self.observer_altitude_m)))
@@ -336,18 +326,21 @@ class SkyMarcher:
         return sky, ground, az
 
     def _dir_from_relative(self, zenith, rel_az):
-        """Directions in the observer frame at zenith angle and azimuth relative to the sun."""
+        """Directions in the observer frame at zenith angle and azimuth relative to the sun
+        (broadcast against each other)."""
+        zenith, rel_az = np.broadcast_arrays(zenith, rel_az)
         az = np.radians(self.sun_azimuth_deg) + rel_az
         return np.stack([np.sin(zenith) * np.sin(az), np.sin(zenith) * np.cos(az), np.cos(zenith)], axis=-1)
 
     def _build_grid(self):
         sky, ground, az = self._grid_axes()
         images = []
+        n = max(1, int(MARCH_THREADS))
+        step = max(1, min(self.settings.chunk, MARCH_PIECE) // n // az.size)  # rings per piece
         for zen in (sky, ground):
-            zz, aa = np.meshgrid(zen, az, indexing="ij")
-            d = self._dir_from_relative(zz.ravel(), aa.ravel())
-            parts = self.exact_in_threads(d)
-            images.append(tuple(np.concatenate(c).reshape(zen.size, az.size, -1) for c in zip(*parts)))
+            rings = self._dir_from_relative(zen[:, None], az[None, :])  # (n_zen, n_az, 3)
+            parts = _in_threads(lambda i, rings=rings: self._march(rings[i:i + step]), range(0, zen.size, step), n)
+            images.append(tuple(np.concatenate(c) for c in zip(*parts)))
         return sky, ground, az, images
 
     def exact_in_threads(self, d, threads: int | None = None):
@@ -359,16 +352,12 @@ class SkyMarcher:
         list of the chunks' (single, multiple, ground), in order."""
         n = max(1, int(MARCH_THREADS if threads is None else threads))
         step = max(1, min(self.settings.chunk, MARCH_PIECE) // n)
-        starts = range(0, d.shape[0], step)
-        if n == 1 or len(starts) == 1:
-            return [self._exact(d[i:i + step]) for i in starts]
-        from concurrent.futures import ThreadPoolExecutor
+        return _in_threads(lambda i: self._exact(d[i:i + step]), range(0, d.shape[0], step), n)
 
-        with ThreadPoolExecutor(max_workers=n) as pool:
-            return list(pool.map(lambda i: self._exact(d[i:i + step]), starts))
-
-    def _from_grid(self, d):
-        sky, ground, az, images = self._grid
+    def _grid_cells(self, d):
+        """For directions d (N, 3): per side of the horizon (sky, ground) the mask of the
+        directions on it and their bilinear cells in the direction grid (i, fz, j, fa)."""
+        sky, ground, az, _ = self._grid
         zen = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
         sun_h = self.sun[:2]
         dh = d[:, :2]
@@ -376,34 +365,44 @@ class SkyMarcher:
         c = np.where(nrm > 1e-12, (dh @ sun_h) / np.where(nrm > 1e-12, nrm, 1.0), 1.0)
         rel = np.arccos(np.clip(c, -1.0, 1.0))
         th = self.horizon_zenith_rad()
-        n_comp = len(images[0])
-        out = [np.empty((d.shape[0], images[0][k].shape[-1])) for k in range(n_comp)]
-        for mask, axis, imgs in ((zen < th, sky, images[0]), (zen >= th, ground, images[1])):
-            if not np.any(mask):
-                continue
+        cells = []
+        for mask, axis in ((zen < th, sky), (zen >= th, ground)):
             z = np.clip(zen[mask], axis[0], axis[-1])
             i = np.clip(np.searchsorted(axis, z, side="right") - 1, 0, axis.size - 2)
             fz = ((z - axis[i]) / (axis[i + 1] - axis[i]))[:, None]
             a = rel[mask]
             j = np.clip(np.searchsorted(az, a, side="right") - 1, 0, az.size - 2)
             fa = ((a - az[j]) / (az[j + 1] - az[j]))[:, None]
+            cells.append((mask, i, fz, j, fa))
+        return cells
+
+    def _from_grid(self, d, images=None):
+        """Each image of ``images`` (per side of the horizon, a tuple of (n_zen, n_az, K)
+        arrays; default the grid's (single, multiple, ground)) interpolated bilinearly at
+        directions d (N, 3): a list of (N, K) arrays."""
+        images = self._grid[3] if images is None else images
+        out = [np.empty((d.shape[0], img.shape[-1])) for img in images[0]]
+        for (mask, i, fz, j, fa), imgs in zip(self._grid_cells(d), images):
+            if not np.any(mask):
+                continue
             for k, img in enumerate(imgs):
                 out[k][mask] = ((img[i, j] * (1 - fa) + img[i, j + 1] * fa) * (1 - fz)
                                 + (img[i + 1, j] * (1 - fa) + img[i + 1, j + 1] * fa) * fz)
         return out
 
-    def _gather_ms(self, d, t, dt, h, up):
-        """Integral of T* J_ms along view rays at the solver wavelengths (per unit E_sun)."""
-        mu = np.einsum("nsi,ni->ns", up, d)
-        mus = up @ self.sun
-        vs = d @ self.sun
+    def _gather_ms(self, rings, D):
+        """Integral of T* J_ms along the view rays of directions D (G, B, 3) on ``rings``
+        at the solver wavelengths (per unit E_sun), (G, B, W_ms)."""
+        mus = self._sun_cosines(rings, D)  # (G, B, S)
+        mu = np.broadcast_to(rings.mu[:, None, :], mus.shape)
+        vs = (D @ self.sun)[..., None]
         den = np.sqrt(np.clip((1 - mu * mu) * (1 - mus * mus), 0.0, None))
-        cphi = np.where(den > 1e-12, (vs[:, None] - mu * mus) / np.where(den > 1e-12, den, 1.0), 1.0)
+        cphi = np.where(den > 1e-12, (vs - mu * mus) / np.where(den > 1e-12, den, 1.0), 1.0)
         phi = np.arccos(np.clip(cphi, -1.0, 1.0))
-        ext = self.medium_ms.extinction_scaled.at(h)
-        tau_mid = np.cumsum(ext * dt[..., None], axis=1) - 0.5 * ext * dt[..., None]
-        src = self.field.source_at(h, mu, phi, mus)
-        return (np.exp(-tau_mid) * src * dt[..., None]).sum(axis=1)
+        step = self.medium_ms.extinction_scaled.at(rings.h) * rings.dt[..., None]  # (G, S, W_ms)
+        weight = np.exp(-(np.cumsum(step, axis=1) - 0.5 * step)) * rings.dt[..., None]
+        src = self.field.source_at(np.broadcast_to(rings.h[:, None, :], mus.shape), mu, phi, mus)
+        return _column(weight, src)
 
     def _capped_aerosol_phase(self, cos_theta):
         """(1 - f) p*: each regime's phase function with its forward peak clipped at the
@@ -421,56 +420,56 @@ class SkyMarcher:
         return peak_aureole_table(self.profile, self.medium, self.settings.delta_m_cutoff_deg, self.top)
 
     def _aureole_gather(self, cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s, block: int = 256):
-        """Integral along view rays (C, S) of the peak light left out by delta-M:
-        sigma_peak E_sun T*_sun T*_view C(theta, tau_peak) dt, (C, n_wl); tau_peak is the
-        peak optical depth of the sun path to the point plus the view path from it.
-        Directions are taken ``block`` at a time (memory ~ block * S * n_wl * 8 B * 8)."""
+        """Integral along the view rays of directions (G, A) on rings (samples (G, S)) of
+        the peak light left out by delta-M: sigma_peak E_sun T*_sun T*_view C(theta,
+        tau_peak) dt, (G, A, n_wl); tau_peak is the peak optical depth of the sun path to
+        the point plus the view path from it. ``cos_theta`` (G, A); ``dt``, ``ext``,
+        ``ext_s``, ``trans_s`` per ring; ``t_sun``, ``t_sun_s`` (G, A, S, n_wl). Directions
+        are taken ``block`` at a time (memory ~ block * S * n_wl * 8 B * 8)."""
         theta_g, tau_g, table = self._aureole
         theta = np.arccos(np.clip(cos_theta, -1.0, 1.0))
         n_wl = ext.shape[-1]
-        out = np.zeros((cos_theta.size, n_wl))
-        near = np.nonzero(theta < theta_g[-1])[0]
+        out = np.zeros(cos_theta.shape + (n_wl,))
+        gn, an = np.nonzero(theta < theta_g[-1])
         n_tau = tau_g.size
-        flat = table.reshape(-1)
         w_idx = np.arange(n_wl)
         tiny = 1e-300
-        for k in range(0, near.size, block):
-            sel = near[k:k + block]
-            sig_pk = np.maximum(ext[sel] - ext_s[sel], 0.0)  # peak scattering, m^-1
-            step = sig_pk * dt[sel][..., None]
-            tau = np.log(np.maximum(t_sun_s[sel], tiny) / np.maximum(t_sun[sel], tiny))  # sun path
-            tau += np.cumsum(step, axis=1) - 0.5 * step  # + view path
+        step = np.maximum(ext - ext_s, 0.0) * dt[..., None]  # peak scattering optical depth of each step
+        view = np.cumsum(step, axis=1) - 0.5 * step  # peak optical depth of the view path, per ring
+        seen = step * trans_s
+        for k in range(0, gn.size, block):
+            g, a = gn[k:k + block], an[k:k + block]
+            ts, ts_s = t_sun[g, a], t_sun_s[g, a]
+            tau = np.log(np.maximum(ts_s, tiny) / np.maximum(ts, tiny))  # sun path
+            tau += view[g]  # + view path
             np.clip(tau, 0.0, tau_g[-1], out=tau)
-            x = theta[sel] / theta_g[-1] * (theta_g.size - 1)
+            x = theta[g, a] / theta_g[-1] * (theta_g.size - 1)
             i = np.clip(x.astype(int), 0, theta_g.size - 2)
             fi = np.clip(x - i, 0.0, 1.0)[:, None, None]
-            j = np.clip(np.searchsorted(tau_g, tau, side="right") - 1, 0, n_tau - 2)
+            rows = (table[i] * (1 - fi) + table[i + 1] * fi).reshape(-1)  # each direction's angle: (n, n_tau, W)
+            j = _tau_cells(tau_g, tau)
             fj = (tau - tau_g[j]) / (tau_g[j + 1] - tau_g[j])
-            base = (i[:, None, None] * n_tau + j) * n_wl + w_idx  # table index of (theta_i, tau_j, wavelength)
-            lo = flat[base] * (1 - fj) + flat[base + n_wl] * fj
-            hi = flat[base + n_tau * n_wl] * (1 - fj) + flat[base + (n_tau + 1) * n_wl] * fj
-            c = lo * (1 - fi) + hi * fi
-            out[sel] = (step * t_sun_s[sel] * trans_s[sel] * c).sum(axis=1)
+            base = (np.arange(g.size)[:, None, None] * n_tau + j) * n_wl + w_idx  # index of (direction, tau_j, wl)
+            c = rows[base] * (1 - fj) + rows[base + n_wl] * fj
+            out[g, a] = (seen[g] * ts_s * c).sum(axis=1)
         return out * self.profile.solar_irradiance
 
-    def _delta_m_first_scattering(self, cos_theta, dt, ray, regimes, aers, pa, trans, t_sun, trans_s, t_sun_s):
-        """The first scattering of sunlight as the delta-M solver counts it (per unit of
-        the result's solar spectrum applied): the part of every phase function outside the
-        truncated forward peak, p_cap = min(p, p(cutoff)), seen through the scaled
-        extinction (light scattered into the peak on the way counts as undeflected, as in
-        the solver's diffuse field), the peak p - p_cap through the true extinction. Its
-        excess over true single scattering is light the solver's orders >= 2 leave out
+    def _delta_m_first_scattering(self, cos_theta, dt, ray, regimes, aers, pa, c_aer, trans_s, t_sun_s):
+        """The first scattering of sunlight as the delta-M solver counts it, (G, A, n_wl)
+        for directions on rings as in :meth:`_march`: the part of every phase function
+        outside the truncated forward peak, p_cap = min(p, p(cutoff)), seen through the
+        scaled extinction (light scattered into the peak on the way counts as undeflected,
+        as in the solver's diffuse field), the peak p - p_cap through the true extinction.
+        Its excess over true single scattering is light the solver's orders >= 2 leave out
         (the forward-scattered part of the scaled-out extinction), so the total keeps it,
-        in ``multiple``."""
+        in ``multiple``. ``c_aer``: each regime's column sum_s T t_sun sigma_r dt."""
         prof = self.profile
-        p_cap = self._capped_aerosol_phase(cos_theta)  # (R, C, W)
-        broad = ray * prof.rayleigh_phase(cos_theta)[:, None, :]
-        peak = np.zeros_like(broad)
-        for reg, sig in zip(regimes, aers):
-            broad = broad + sig * p_cap[reg][:, None, :]
-            peak = peak + sig * np.maximum(pa[reg] - p_cap[reg], 0.0)[:, None, :]
-        return prof.solar_irradiance * ((trans_s * t_sun_s * broad + trans * t_sun * peak)
-                                        * dt[..., None]).sum(axis=1)
+        p_cap = self._capped_aerosol_phase(cos_theta)  # (R, G, A, W)
+        w_s = trans_s * dt[..., None]
+        first = prof.rayleigh_phase(cos_theta) * _column(w_s * ray, t_sun_s)
+        for reg, sig, c in zip(regimes, aers, c_aer):
+            first = first + p_cap[reg] * _column(w_s * sig, t_sun_s) + np.maximum(pa[reg] - p_cap[reg], 0.0) * c
+        return prof.solar_irradiance * first
 
     # ---------------------------------------------------------------- public
     def direct_sun_irradiance(self) -> np.ndarray:
@@ -479,33 +478,74 @@ class SkyMarcher:
         prof = self.profile
         if self.observer_altitude_m >= self.top:
             d = self.sun[None, :]
-            p = self.origin[None, :]
-            _, _, hits = atmosphere_segment(p, d, self.R, self.R + self.top)
-            t, dt, h, _, hits, _ = self._samples(d)
-            tau = (self.medium.extinction.at(h) * dt[..., None]).sum(axis=1)[0]
-            blocked = bool(hits[0])
+            rings = self._rings(d[:, 2])
+            tau = (self.medium.extinction.at(rings.h) * rings.dt[..., None]).sum(axis=1)[0]
+            blocked = bool(rings.hits[0])
             return np.zeros_like(prof.solar_irradiance) if blocked else prof.solar_irradiance * np.exp(-tau)
         t_sun = self.sun_table.transmittance(np.array([self.observer_altitude_m]), np.array([self.sun[2]]))[0]
         return prof.solar_irradiance * t_sun
 
-    def radiance(self, directions) -> SkyRadiance:
-        """Sky radiance (without the solar disc) looking along ``directions`` (N, 3)."""
+    @staticmethod
+    def _unit(directions):
         d = np.asarray(directions, dtype=float).reshape(-1, 3)
         nrm = np.linalg.norm(d, axis=1, keepdims=True)
         if np.any(~np.isfinite(d)) or np.any(nrm < 1e-12):
             raise SkymodelInputError("directions", "non-finite or zero vectors", "unit vectors (N, 3)")
-        d = d / nrm
+        return d / nrm
+
+    def _near_sun(self, d):
+        """Indices of the directions d (N, 3) that are marched exactly with a grid: those
+        within ``settings.sun_exact_deg`` of the sun."""
+        return np.nonzero(d @ self.sun > np.cos(np.radians(self.settings.sun_exact_deg)))[0]
+
+    def _exact_parts(self, d):
+        """(single, multiple, ground) of directions d (N, 3), every one marched
+        (:meth:`exact_in_threads`)."""
+        if d.shape[0] == 0:
+            return tuple(np.zeros((0, self.profile.wavelengths_nm.size)) for _ in range(3))
+        return tuple(np.concatenate(c) for c in zip(*self.exact_in_threads(d)))
+
+    def total_radiance(self, directions, matrix=None) -> np.ndarray:
+        """The total radiance (single + multiple + ground, without the solar disc) looking
+        along ``directions`` (N, 3): (N, n_wl), or times ``matrix`` (n_wl, K), a linear
+        reduction such as CIE XYZ. What ``radiance(directions).radiance @ matrix`` gives
+        up to rounding, cheaper: on the direction grid the total, reduced once per marcher
+        and matrix, is interpolated instead of the three spectral components."""
+        d = self._unit(directions)
+        if self._grid is None:
+            total = sum(self._exact_parts(d))
+            return total if matrix is None else total @ matrix
+        out = self._from_grid(d, self._grid_total(matrix))[0]
+        near = self._near_sun(d)
+        if near.size:
+            exact = sum(self._exact_parts(d[near]))
+            out[near] = exact if matrix is None else exact @ matrix
+        check_finite("radiance", out)
+        return out
+
+    def _grid_total(self, matrix):
+        """The grid's total radiance images times ``matrix`` (None: the spectra), per side of
+        the horizon; the last one is kept."""
+        cached = getattr(self, "_total_images", None)
+        if cached is not None and (cached[0] is matrix or (matrix is not None and cached[0] is not None
+                                                           and np.array_equal(cached[0], matrix))):
+            return cached[1]
+        images = [(sum(imgs) if matrix is None else sum(imgs) @ matrix,) for imgs in self._grid[3]]
+        self._total_images = (matrix, images)
+        return images
+
+    def radiance(self, directions) -> SkyRadiance:
+        """Sky radiance (without the solar disc) looking along ``directions`` (N, 3)."""
+        d = self._unit(directions)
         prof = self.profile
         t_start = time.perf_counter()
         if self._grid is None:
-            parts = [self._exact(d[i:i + self.settings.chunk]) for i in range(0, d.shape[0], self.settings.chunk)]
-            single, multiple, ground = (np.concatenate(c) for c in zip(*parts))
+            single, multiple, ground = self._exact_parts(d)
         else:
             single, multiple, ground = self._from_grid(d)
-            near = np.nonzero(d @ self.sun > np.cos(np.radians(self.settings.sun_exact_deg)))[0]
-            for i in range(0, near.size, self.settings.chunk):  # in chunks: memory ~ chunk
-                idx = near[i:i + self.settings.chunk]
-                single[idx], multiple[idx], ground[idx] = self._exact(d[idx])
+            near = self._near_sun(d)
+            if near.size:
+                single[near], multiple[near], ground[near] = self._exact_parts(d[near])
         info = {"orders": self.field.orders, "order_contributions": list(self.field.order_contributions),
                 "timings": dict(self.timings, directions_s=time.perf_counter() - t_start),
                 "settings": self.settings}
@@ -513,71 +553,191 @@ class SkyMarcher:
         check_finite("radiance", res.radiance)
         return res
 
-    def _exact(self, d):
-        """(single, multiple, ground) radiance for directions d (N, 3), every one
-        marched: single scattering and direct-sun ground light at every wavelength, the
-        multiple-scattering source gathered at the solver wavelengths."""
-        prof = self.profile
-        med = self.medium
-        t, dt, h, up, hits, t1 = self._samples(d)
+    # ---------------------------------------------------------------- marching
+    def _rings(self, cos_zenith):
+        """View-ray samples of rings of directions with the zenith cosines ``cos_zenith``
+        (G,). The observer is on the z axis, so they depend only on the zenith angle: one
+        set serves every direction of a ring (:class:`_Rings`), computed for the ring's
+        direction of azimuth 90 degrees, so it never depends on which directions share it."""
+        cz = np.asarray(cos_zenith, dtype=float)
+        d0 = np.stack([np.sqrt(np.clip(1.0 - cz * cz, 0.0, None)), np.zeros_like(cz), cz], axis=-1)
+        p = np.broadcast_to(self.origin, d0.shape)
+        t0, t1, hits = atmosphere_segment(p, d0, self.R, self.R + self.top)
+        t, dt = march_samples(p, d0, t0, t1, self.settings.view_steps, self.R)
+        h = altitude_along(p, d0, t, self.R)
+        x = p[:, None, :] + t[..., None] * d0[:, None, :]
+        r = np.linalg.norm(x, axis=-1)
+        mu = np.einsum("gsi,gi->gs", x, d0) / r
+        r1 = np.linalg.norm(p + t1[:, None] * d0, axis=-1)
+        return _Rings(t, dt, np.maximum(h, 0.0), r, x[..., 2], mu, hits, t1, r1)
+
+    def _sun_cosines(self, rings, D):
+        """Cosine of the sun's zenith angle at every sample, (G, A, S), of directions D
+        (G, A, 3) on rings (``D[g, :, 2]`` the zenith cosine of ring g): the local
+        vertical at distance t is (t d_x, t d_y, z0 + t d_z) / r."""
+        hs = D[..., 0] * self.sun[0] + D[..., 1] * self.sun[1]  # (G, A)
+        return (rings.t[:, None, :] * hs[..., None] + (rings.xz * self.sun[2])[:, None, :]) / rings.r[:, None, :]
+
+    def _march(self, D):
+        """(single, multiple, ground), each (G, A, n_wl), for directions D (G, A, 3) on G
+        rings of equal zenith angle (``D[g, :, 2]`` equal; A = 1 for any directions).
+
+        What depends only on the zenith angle (the samples, the medium along them and the
+        view transmittances) is computed once per ring; per direction only what depends
+        on the sun: the sun transmittance at every sample, the phase functions (constant
+        along a ray: the sun is a parallel beam), the multiple-scattering source and the
+        peak aureole. Single scattering is then a sum of column integrals
+        E_sun [p_R(cos) sum_s T t_sun sigma_R dt + sum_r p_r(cos) sum_s T t_sun sigma_r dt]."""
+        prof, med = self.profile, self.medium
+        e_sun = prof.solar_irradiance
+        rings = self._rings(D[:, 0, 2])
         regimes = [reg for reg, lr in enumerate(med.aerosol) if np.any(lr.weights)]
         lrs = [med.extinction, med.extinction_scaled, med.rayleigh] + [med.aerosol[reg] for reg in regimes]
-        ext, ext_s, ray, *aers = evaluate_many(lrs, h)  # each (C, S, W)
-        step_tau = ext * dt[..., None]
+        ext, ext_s, ray, *aers = evaluate_many(lrs, rings.h)  # each (G, S, W)
+        dtw = rings.dt[..., None]
+        step_tau = ext * dtw
         trans = np.exp(-(np.cumsum(step_tau, axis=1) - 0.5 * step_tau))
-        mus = up @ self.sun  # (C, S)
-        t_sun = self.sun_table.transmittance(h, mus, which=0)  # (C, S, W) includes the shadow
-        cos_theta = d @ self.sun  # (C,)
-        pa = prof.aerosol_phase_at(cos_theta)  # (R, C, W)
+        cos_theta = D @ self.sun  # (G, A)
+        mus = self._sun_cosines(rings, D)  # (G, A, S)
+        h_b = np.broadcast_to(rings.h[:, None, :], mus.shape)
         ms_on = self.field.orders > 1
+        # toward the sun from every sample (G, A, S, W), the shadow included: the true
+        # extinction and (with multiple scattering) the delta-M scaled one, one table lookup
+        t_sun, *scaled = self.sun_table.transmittances(h_b, mus, (0, 2) if ms_on else (0,))
+        pa = prof.aerosol_phase_at(cos_theta)  # (R, G, A, W)
+        p_ray = prof.rayleigh_phase(cos_theta)  # (G, A, W)
         # single scattering: true extinction, full phase functions (with or without the
         # multiple-scattering part, so ``single`` is what an orders=1 render gives)
-        scat = ray * prof.rayleigh_phase(cos_theta)[:, None, :]
-        for reg, sig in zip(regimes, aers):
-            scat = scat + sig * pa[reg][:, None, :]
-        single = prof.solar_irradiance * (trans * t_sun * scat * dt[..., None]).sum(axis=1)
+        w = trans * dtw
+        c_aer = [_column(w * sig, t_sun) for sig in aers]
+        scat = p_ray * _column(w * ray, t_sun)
+        for reg, c in zip(regimes, c_aer):
+            scat = scat + pa[reg] * c
+        single = e_sun * scat
         # delta-M bookkeeping (with multiple scattering) that the total needs but single
         # scattering is not: counted in ``multiple`` (see _delta_m_first_scattering)
         rebalance = np.zeros_like(single)
         if ms_on:
-            step_tau_s = ext_s * dt[..., None]
+            step_tau_s = ext_s * dtw
             trans_s = np.exp(-(np.cumsum(step_tau_s, axis=1) - 0.5 * step_tau_s))
-            t_sun_s = self.sun_table.transmittance(h, mus, which=2)
-            first = self._delta_m_first_scattering(cos_theta, dt, ray, regimes, aers, pa, trans, t_sun,
-                                                   trans_s, t_sun_s)
+            t_sun_s = scaled[0]
+            first = self._delta_m_first_scattering(cos_theta, rings.dt, ray, regimes, aers, pa, c_aer, trans_s,
+                                                   t_sun_s)
             rebalance = first - single
             if self._aureole is not None:
-                aureole = self._aureole_gather(cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s)
+                aureole = self._aureole_gather(cos_theta, rings.dt, ext, ext_s, t_sun, t_sun_s, trans_s)
         # ground seen directly: direct sun and (from the solver) diffuse sky light
         ground = np.zeros_like(single)
         ms_ground = np.zeros_like(single)
-        if np.any(hits):
-            gi = np.nonzero(hits)[0]
-            p_g = self.origin + t1[gi, None] * d[gi]
-            n_g = p_g / np.linalg.norm(p_g, axis=1, keepdims=True)
-            mus_g = n_g @ self.sun
+        gi = np.nonzero(rings.hits)[0]
+        if gi.size:
+            dg = D[gi]
+            hs = dg[..., 0] * self.sun[0] + dg[..., 1] * self.sun[1]
+            t1 = rings.t1[gi, None]
+            mus_g = (t1 * hs + (self.origin[2] + t1 * dg[..., 2]) * self.sun[2]) / rings.r1[gi, None]  # (Gh, A)
             albedo = prof.ground_albedo / np.pi
-            cos_g = np.maximum(mus_g, 0.0)[:, None]
+            cos_g = np.maximum(mus_g, 0.0)[..., None]
             # the directly lit ground through the true extinction (what orders=1 gives)
-            t_ground = np.exp(-step_tau[gi].sum(axis=1))  # (G, W)
-            e_dir = prof.solar_irradiance * self.sun_table.transmittance(np.zeros(gi.size), mus_g, which=0) * cos_g
+            t_ground = np.exp(-step_tau[gi].sum(axis=1))[:, None, :]  # (Gh, 1, W)
+            t_dir = self.sun_table.transmittances(np.zeros_like(mus_g), mus_g, (0, 2) if ms_on else (0,))
+            e_dir = e_sun * t_dir[0] * cos_g
             ground[gi] = t_ground * albedo * e_dir
             if ms_on:
                 # the solver's ground light is seen through the delta-M scaled extinction,
                 # and so is the direct sun on the ground in the total: the difference to
                 # the true extinction goes with ``multiple`` as for the sky
-                t_ground_s = np.exp(-step_tau_s[gi].sum(axis=1))
-                e_dir_s = prof.solar_irradiance * self.sun_table.transmittance(
-                    np.zeros(gi.size), mus_g, which=2) * cos_g
-                e_diff = (self.field.ground_irradiance_at(mus_g) @ self.to_full) * prof.solar_irradiance
+                t_ground_s = np.exp(-step_tau_s[gi].sum(axis=1))[:, None, :]
+                e_dir_s = e_sun * t_dir[1] * cos_g
+                e_diff = (self.field.ground_irradiance_at(mus_g) @ self.to_full) * e_sun
                 ms_ground[gi] = t_ground_s * albedo * e_diff
                 rebalance[gi] += t_ground_s * albedo * e_dir_s - ground[gi]
         multiple = ms_ground + rebalance
         if ms_on and self._aureole is not None:
             multiple = multiple + aureole
         if ms_on:
-            multiple = multiple + (self._gather_ms(d, t, dt, h, up) @ self.to_full) * prof.solar_irradiance
+            multiple = multiple + (self._gather_ms(rings, D) @ self.to_full) * e_sun
         return single, multiple, ground
+
+    def _exact(self, d):
+        """(single, multiple, ground) radiance for directions d (N, 3), every one
+        marched: single scattering and direct-sun ground light at every wavelength, the
+        multiple-scattering source gathered at the solver wavelengths. Directions with
+        the same zenith cosine (a row of an equirectangular image) are marched as one
+        ring (:meth:`_march`), padded to the longest ring with repeats of its last
+        direction when that adds at most half again; else each is a ring of its own.
+        A direction's values never depend on the others (the rings' samples depend
+        only on the zenith cosine)."""
+        d = np.asarray(d, float)
+        n = d.shape[0]
+        order = np.argsort(d[:, 2], kind="stable")
+        dz = d[order, 2]
+        starts = np.flatnonzero(np.r_[True, dz[1:] != dz[:-1]]) if n else np.zeros(0, int)
+        counts = np.diff(np.r_[starts, n])
+        longest = int(counts.max()) if n else 0
+        if longest <= 1 or starts.size * longest > 1.5 * n:
+            return tuple(c[:, 0, :] for c in self._march(d[:, None, :]))
+        pos = np.arange(longest)
+        idx = order[starts[:, None] + np.minimum(pos, counts[:, None] - 1)]  # (G, longest)
+        real = pos < counts[:, None]
+        out = []
+        for c in self._march(d[idx]):
+            full = np.empty((n, c.shape[-1]))
+            full[idx[real]] = c[real]
+            out.append(full)
+        return tuple(out)
+
+
+@dataclass(frozen=True)
+class _Rings:
+    """View-ray samples shared by every direction of a ring of equal zenith angle, (G, S)
+    each: distance t and step dt (m), altitude h (m), radius r (m) and height coordinate
+    xz (m, along the observer's vertical) of the points, the cosine mu of the view
+    direction's zenith angle there; per ring (G,): whether it ends on the ground, where
+    (t1, m) and that point's radius r1 (m)."""
+
+    t: np.ndarray
+    dt: np.ndarray
+    h: np.ndarray
+    r: np.ndarray
+    xz: np.ndarray
+    mu: np.ndarray
+    hits: np.ndarray
+    t1: np.ndarray
+    r1: np.ndarray
+
+
+def _column(weight, values):
+    """sum_s weight[g, s, w] values[g, a, s, w] -> (G, A, W): a quantity that depends on
+    the ring only (``weight``) integrated against one that depends on the direction."""
+    return np.einsum("gsw,gasw->gaw", weight, values)
+
+
+def _tau_cells(nodes, tau):
+    """np.searchsorted(nodes, tau, side="right") - 1 clipped to [0, nodes.size - 2], for the
+    peak-aureole table's optical depth nodes (0, then geometric): found from the logarithm
+    (a binary search over millions of values costs 6x more) and corrected by one where
+    rounding put it in a neighbouring cell, so the result is the search's."""
+    n = nodes.size
+    ratio = nodes[2:] / nodes[1:-1] if n > 3 else np.zeros(1)
+    if n <= 3 or nodes[0] != 0.0 or not np.allclose(ratio, ratio[0], rtol=1e-9, atol=0.0):
+        return np.clip(np.searchsorted(nodes, tau, side="right") - 1, 0, n - 2)
+    with np.errstate(divide="ignore"):
+        j = np.floor(np.log(np.maximum(tau, 1e-300) / nodes[1]) / np.log(ratio[0])).astype(np.intp) + 1
+    np.clip(j, 0, n - 2, out=j)
+    j += (tau >= nodes[j + 1]) & (j < n - 2)
+    j -= (tau < nodes[j]) & (j > 0)
+    return j
+
+
+def _in_threads(work, starts, threads: int):
+    """[work(i) for i in starts], on ``threads`` threads (numpy releases the GIL)."""
+    starts = list(starts)
+    if threads <= 1 or len(starts) <= 1:
+        return [work(i) for i in starts]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        return list(pool.map(work, starts))
 
 
 def render_directions(profile, directions, sun_elevation_deg: float, sun_azimuth_deg: float = 180.0,

@@ -184,15 +184,16 @@ def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce
     solution = _solution(profile, settings, solution, solutions, progress)
     marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
                          progress=progress, solution=solution)
-    dirs, valid = camera.directions()
     sun_irr = marcher.direct_sun_irradiance()
     disc = None
     if include_sun:
-        disc = sun_disc_spectra(dirs, valid, camera.pixel_solid_angles(), marcher.sun, sun_irr,
-                                profile.wavelengths_nm)
+        disc = _sun_disc_of_camera(camera, marcher.sun, sun_irr, profile.wavelengths_nm)
     if isinstance(reduce, Reduction):
-        out, info, bands = _pixels(marcher, dirs, valid, reduce, n_channels, band_pixels, method, disc)
+        # directions by bands of rows (the camera's): a panorama's are never all held at once
+        out, info, bands = _pixels(marcher, camera, camera.valid_mask(), reduce, n_channels, band_pixels, method,
+                                   disc)
     else:
+        dirs, valid = camera.directions()
         if disc is not None:
             raise ValueError("include_sun needs a Reduction (the disc is added before the finish)")
         out, info, bands = _march_pixels(marcher, dirs, valid, reduce, n_channels, band_pixels)
@@ -230,16 +231,19 @@ def _solution(profile, settings, solution, solutions, progress):
 
 
 def sun_disc_spectra(directions, valid, solid_angles, sun_dir, irradiance, wavelengths_nm,
-                     angular_radius_rad: float = SUN_ANGULAR_RADIUS_RAD):
+                     angular_radius_rad: float = SUN_ANGULAR_RADIUS_RAD, reach_rad=None):
     """The solar disc as :func:`add_sun_disc` draws it (limb darkened, irradiance
-    conserved), without a spectral image: ``(mask (H, W), radiance (mask.sum(), n_wl))``."""
+    conserved), without a spectral image: ``(mask (H, W), radiance (mask.sum(), n_wl))``.
+    ``reach_rad``: how far from the sun pixels are considered (None: add_sun_disc's
+    fallback reach from these pixels' largest solid angle)."""
     from skymodel import sun as sun_module
 
     n_wl = len(wavelengths_nm)
     mask = np.zeros(valid.shape, bool)
     if not np.any(np.asarray(irradiance) > 0):
         return mask, np.zeros((0, n_wl))
-    reach = 4 * angular_radius_rad + 2.0 * float(np.sqrt(np.max(solid_angles)))  # add_sun_disc's fallback reach
+    reach = (4 * angular_radius_rad + 2.0 * float(np.sqrt(np.max(solid_angles))) if reach_rad is None
+             else float(reach_rad))  # add_sun_disc's fallback reach
     near = valid & (directions @ np.asarray(sun_dir, float) > np.cos(min(reach, np.pi)))
     rows = np.nonzero(near.any(axis=1))[0]
     cols = np.nonzero(near.any(axis=0))[0]
@@ -252,6 +256,38 @@ def sun_disc_spectra(directions, valid, solid_angles, sun_dir, irradiance, wavel
                           limb_darkening=getattr(sun_module, "limb_darkening", None))
     mask[r0:r1, c0:c1] = inside
     return mask, sub[inside]
+
+
+def _sun_disc_of_camera(camera, sun_dir, irradiance, wavelengths_nm, rows: int = 256):
+    """:func:`sun_disc_spectra` of ``camera``'s pixels, finding the pixels near the sun by
+    bands of ``rows`` rows (``Camera.directions_rows``), so that every pixel's direction is
+    never held at once; the same result."""
+    n_wl = len(wavelengths_nm)
+    valid = camera.valid_mask()
+    if not np.any(np.asarray(irradiance) > 0):
+        return np.zeros(valid.shape, bool), np.zeros((0, n_wl))
+    solid = camera.pixel_solid_angles()
+    reach = 4 * SUN_ANGULAR_RADIUS_RAD + 2.0 * float(np.sqrt(np.max(solid)))  # sun_disc_spectra's
+    cos_reach = np.cos(min(reach, np.pi))
+    near_rows, near_cols = [], np.zeros(valid.shape[1], bool)
+    for r0 in range(0, valid.shape[0], rows):
+        d = camera.directions_rows(r0, r0 + rows)[0]
+        near = valid[r0:r0 + rows] & (d @ np.asarray(sun_dir, float) > cos_reach)
+        near_rows.extend(r0 + np.nonzero(near.any(axis=1))[0])
+        near_cols |= near.any(axis=0)
+    if not near_rows:  # sun_disc_spectra's fallback searches the whole image
+        d, _ = camera.directions()
+        return sun_disc_spectra(d, valid, solid, sun_dir, irradiance, wavelengths_nm)
+    r0, r1 = near_rows[0], near_rows[-1] + 1
+    cols = np.nonzero(near_cols)[0]
+    c0, c1 = cols[0], cols[-1] + 1
+    d = camera.directions_rows(r0, r1)[0][:, c0:c1]
+    # the same rectangle sun_disc_spectra would cut, with the whole image's reach (its solid angles' maximum)
+    sub_mask, spectra = sun_disc_spectra(d, valid[r0:r1, c0:c1], solid[r0:r1, c0:c1], sun_dir, irradiance,
+                                         wavelengths_nm, reach_rad=reach)
+    mask = np.zeros(valid.shape, bool)
+    mask[r0:r1, c0:c1] = sub_mask
+    return mask, spectra
 
 
 def _check_method(method) -> str:
@@ -273,31 +309,42 @@ def _use_table(marcher, valid, method: str) -> bool:
 
 def _pixels(marcher, dirs, valid, reduction, n_channels: int, band_pixels, method: str, disc=None):
     """The valid pixels of a camera through the sky-view table (:mod:`skymodel.render.skyview`)
-    or marched directly (:func:`_march_pixels`), as ``method`` says (:func:`_use_table`).
-    ``reduction``: a :class:`~skymodel.render.skyview.Reduction` or None (spectra);
-    ``disc``: ``(mask, spectra)`` of the solar disc, added before the reduction's finish.
+    or marched directly (:meth:`~skymodel.render.marcher.SkyMarcher.total_radiance`), as
+    ``method`` says (:func:`_use_table`). ``dirs``: the pixels' directions (H, W, 3), or the
+    :class:`~skymodel.render.cameras.Camera`, which then gives each band's rows only
+    (``directions_rows``), so every pixel's direction is never held at once. A band is
+    ``band_pixels`` valid pixels in row-major order (None: all). ``reduction``: a
+    :class:`~skymodel.render.skyview.Reduction` or None (spectra); ``disc``: ``(mask,
+    spectra)`` of the solar disc, added before the reduction's finish.
     Returns ``(image (H, W, n_channels), info, number of bands)``."""
     from skymodel.render.skyview import Reduction, SkyViewTable
 
     red = reduction if reduction is not None else Reduction(None, int(n_channels))
     h, w = valid.shape
     out = np.zeros((h * w, int(n_channels)))
-    flat = dirs.reshape(-1, 3)
-    sel = np.nonzero(valid.ravel())[0]
-    band = sel.size if band_pixels is None else max(1, int(band_pixels))
+    per_row = valid.sum(axis=1)
+    before = np.concatenate([[0], np.cumsum(per_row)])  # valid pixels before each row
+    total = int(before[-1])
+    band = total if band_pixels is None else max(1, int(band_pixels))
     disc_at = {}
     if disc is not None and disc[1].shape[0]:
         disc_at = dict(zip(np.nonzero(disc[0].ravel())[0].tolist(), red.linear(disc[1])))
     t_start = time.perf_counter()
     table = SkyViewTable(marcher, red) if _use_table(marcher, valid, method) else None
     bands = 0
-    for start in range(0, sel.size, max(band, 1)):
-        idx = sel[start:start + band]
+    for start in range(0, total, max(band, 1)):
+        stop = min(total, start + band)
+        r0 = int(np.searchsorted(before, start, side="right")) - 1  # the rows holding valid pixels start..stop-1
+        r1 = int(np.searchsorted(before, stop, side="left"))
+        d_rows = dirs[r0:r1] if isinstance(dirs, np.ndarray) else dirs.directions_rows(r0, r1)[0]
+        local = np.nonzero(valid[r0:r1].ravel())[0][start - before[r0]:stop - before[r0]]
+        idx = r0 * w + local
+        d = d_rows.reshape(-1, 3)[local]
+        del d_rows
         if table is not None:
-            part = table.lookup(flat[idx])
-        else:
-            res = marcher.radiance(flat[idx])
-            part = red.linear(res.radiance)
+            part = table.lookup(d)
+        else:  # the grid's total, reduced once, or marched (= red.linear(marcher.radiance(..).radiance))
+            part = marcher.total_radiance(d, red.matrix)
         if disc_at:
             hit = np.nonzero(np.isin(idx, list(disc_at)))[0]
             for k in hit:

@@ -124,6 +124,11 @@ class SunTransmittance:
         ``altitudes_m`` whose local vertical makes cosine ``mu_sun`` with the sun
         direction. Directions under the horizon are clamped to the grazing ray (their
         light is removed by :meth:`visible_fraction`)."""
+        return self._basis_depths(altitudes_m, mu_sun, (which,))[0] @ self.media[which].weights
+
+    def _basis_depths(self, altitudes_m, mu_sun, which):
+        """The tabulated optical depths of the basis functions of each medium in ``which``
+        (…, rank), interpolated at the points (one lookup for all the media)."""
         h = np.clip(np.asarray(altitudes_m, dtype=float), self.h_nodes[0], self.h_nodes[-1])
         r = self.R + h
         mu_h = -np.sqrt(np.clip(1.0 - (self.R / r) ** 2, 0.0, 1.0))
@@ -134,12 +139,18 @@ class SunTransmittance:
         xs = x * (self.x_nodes.size - 1) / self.x_nodes[-1]
         j = np.clip(xs.astype(int), 0, self.x_nodes.size - 2)
         fj = np.clip(xs - j, 0.0, 1.0)[..., None]
-        tab = self.tables[which]
+        tab = self.tables[which[0]] if len(which) == 1 else np.concatenate([self.tables[w] for w in which], axis=-1)
         tau_k = ((tab[i, j] * (1 - fj) + tab[i, j + 1] * fj) * (1 - fi)
                  + (tab[i + 1, j] * (1 - fj) + tab[i + 1, j + 1] * fj) * fi)
-        return tau_k @ self.media[which].weights
+        return np.split(tau_k, np.cumsum([self.media[w].rank for w in which])[:-1], axis=-1)
 
     def transmittance(self, altitudes_m, mu_sun, which: int = 0):
         """exp(-tau) times the visible fraction of the disc, (…, n_wl)."""
-        tau = self.optical_depth(altitudes_m, mu_sun, which)
-        return np.exp(-tau) * self.visible_fraction(altitudes_m, mu_sun)[..., None]
+        return self.transmittances(altitudes_m, mu_sun, (which,))[0]
+
+    def transmittances(self, altitudes_m, mu_sun, which=(0,)):
+        """:meth:`transmittance` of each medium in ``which`` at the same points, with one
+        table lookup: a list of (…, n_wl) arrays."""
+        vis = self.visible_fraction(altitudes_m, mu_sun)[..., None]
+        return [np.exp(-(tau_k @ self.media[w].weights)) * vis
+                for w, tau_k in zip(which, self._basis_depths(altitudes_m, mu_sun, tuple(which)))]
