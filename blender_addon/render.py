@@ -173,7 +173,9 @@ def _check_sequence(o) -> None:
     custom = o.location is None and o.lat is not None
     atm = Atmosphere(location=None if custom else (o.location or "rural"), latitude=o.lat if custom else None,
                      longitude=o.lon if custom else None, aerosol=o.aerosol)
-    timeline.day_frames(atm.latitude, atm.longitude, o.date, o.time_from, o.time_to, o.every, o.timezone)
+    # through the night too: frames below -18 render the night's light (as skymodel timelapse's --night auto)
+    timeline.day_frames(atm.latitude, atm.longitude, o.date, o.time_from, o.time_to, o.every, o.timezone,
+                        allow_night=True)
     folder = os.path.abspath(o.out)
     if os.path.exists(folder) and not os.path.isdir(folder):
         raise SkymodelInputError("--out", o.out, "a folder for the frames (this is a file)")

@@ -101,7 +101,9 @@ def describe(scene, settings) -> object:
     cams = cameras_of(scene, settings.plan_cameras)
     views = [camera_view(c, scale) for c in cams] or [planner.CameraView()]
     params = dataclasses.replace(settings.to_params(), mode="ENVIRONMENT")
-    sun_el = physics.resolve(params).sun_elevation_deg
+    # at night (a date with the sun below -18) the planner's sun is its lowest, -18: its tables end
+    # there, and Auto builds the night in Environment mode (ops.prepare)
+    sun_el = max(physics.resolve(params).sun_elevation_deg, physics.MIN_SUN_ELEVATION_DEG)
     r = scene.render
     pct = r.resolution_percentage / 100.0
     return planner.SceneDescription(
