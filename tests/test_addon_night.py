@@ -191,3 +191,14 @@ def test_a_baked_evening_runs_into_the_night(night, tmp_path):
         shown.append(environment.sky_log_average(rgb, cam) * 2.0 ** sc.view_settings.exposure)
     # one rule for every frame (the core's, as Build Sky's): the night is shown darker than dusk
     assert shown[1] < shown[0] and shown[2] < shown[0]
+
+
+def test_the_headless_day_and_a_night_time_are_accepted_and_volumetric_named(addon, tmp_path, capsys):
+    from blender_addon import render
+
+    day = ["--location", "rural", "--date", "2026-12-21", "--from", "16:00", "--to", "23:59", "--every", "1h",
+           "--timezone", "UTC", "--out", str(tmp_path / "frames")]
+    render.check_options(render.parse_args(day))  # through the night: no refusal (the frames are baked as above)
+    assert render.main(["--location", "rural", "--time", "2026-12-21T20:00", "--mode", "volumetric",
+                        "--out", str(tmp_path / "v.png")]) == 2
+    assert "mode=" in capsys.readouterr().err and not (tmp_path / "v.png").exists()
