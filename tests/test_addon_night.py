@@ -97,17 +97,37 @@ def test_a_moonlit_night_builds_the_cores_night_with_its_moon_lamp(night, tmp_pa
     assert moon["skymodel_moon_elevation_deg"] == pytest.approx(core_moon["elevation_deg"], abs=1e-6)
     assert math.degrees(moon.data.angle) == pytest.approx(core_moon["angle_deg"], rel=1e-5)
     assert night.view_settings.exposure == pytest.approx(env.exposure, abs=1e-5)
+    assert "Night (no sunlit sky below -18°): moonlit sky, " in s.last_info and "Moon 6" in s.last_info
 
 
-def test_a_moonless_night_has_no_moon_light(night):
+def test_a_moonless_night_has_no_moon_light_and_its_brightest_star_where_the_catalogue_puts_it(night):
+    """256x128 (a moonless night needs no solve): the brightest star more than 30 deg up is a
+    bright pixel at the catalogue's place (its 2x2 splat at least 10x the image's median)."""
+    from blender_addon import physics
+    from skymodel.astro.stars import catalogue, star_positions
+    from skymodel.render import environment
+
     s = night.world.skymodel
+    s.image_width = 256
     _set_time(s, MOONLESS)
     assert bpy.ops.skymodel.build_sky() == {"FINISHED"}
     img = _image(night.world)
+    assert img.shape == (128, 256, 3)
     assert np.isfinite(img).all() and img.min() >= 0.0 and img.max() > 0.0  # glow and stars: not black
     sun, moon = _lamps()
     assert sun.data.energy == 0.0
     assert moon is None or moon.data.energy == 0.0
+    sky = physics.resolve(s.to_params())
+    places = star_positions(sky.atmosphere.latitude, sky.atmosphere.longitude, sky.time_iso)
+    v = np.where(places.elevation_deg > 30.0, catalogue().v_mag, np.inf)
+    k = int(np.argmin(v))
+    assert v[k] < 1.0  # a first-magnitude star
+    (col, row), visible = environment.environment_camera(256).project(places.direction_enu()[k])
+    assert visible
+    y = img @ np.array([0.2126, 0.7152, 0.0722])
+    r0, c0 = int(np.floor(row)), int(np.floor(col))
+    splat = y[r0:r0 + 2, c0:c0 + 2]
+    assert splat.max() > 10.0 * np.median(y[: 64])
 
 
 def _snapshot():
