@@ -94,13 +94,9 @@ def prepare(context, settings=None, progress=None, params=None, live_stage=None)
         auto_plan = scene_description.make_plan(scene, settings)
         params = scene_description.params_from_plan(params, auto_plan)
         auto_info = scene_description.plan_info(auto_plan)
-        if params.mode == "VOLUMETRIC":  # at night the volumes show no stars or glow: Environment
-            el = physics.resolve(dataclasses.replace(params, mode="ENVIRONMENT")).sun_elevation_deg
-            if physics.is_night(el):
-                params = dataclasses.replace(params, mode="ENVIRONMENT")
-                auto_info["warnings"].append(
-                    f"Auto plan: night (sun at {el:.1f}°, below {physics.MIN_SUN_ELEVATION_DEG:g}°): Environment "
-                    "mode, since the volumes show no stars, glow or moon disc")
+        if params.mode == "VOLUMETRIC" and (night := scene_description.night_message(params)):
+            params = dataclasses.replace(params, mode="ENVIRONMENT")  # the volumes show no stars or glow
+            auto_info["warnings"].append(f"Auto plan: {night}")
         if progress:
             for line in scene_description.plan_lines(auto_plan):
                 progress(f"plan: {line}")

@@ -126,6 +126,17 @@ def overrides(settings) -> dict:
     return out
 
 
+def night_message(params) -> str | None:
+    """Why Auto builds in Environment mode whatever the plan says, for a date/time whose sun is
+    below -18 (the volumes show no stars, glow or moon disc; :func:`physics.resolve` refuses
+    Volumetric mode there); None in daytime and twilight. Raises on bad input as ``resolve``."""
+    el = physics.resolve(dataclasses.replace(params, mode="ENVIRONMENT")).sun_elevation_deg
+    if not physics.is_night(el):
+        return None
+    return (f"night (sun at {el:.1f}°, below {physics.MIN_SUN_ELEVATION_DEG:g}°): Environment mode, since the "
+            "volumes show no stars, glow or moon disc")
+
+
 def make_plan(scene, settings):
     """The plan for ``scene`` (raises the core's ``SkymodelInputError`` on bad input)."""
     return planner.plan(describe(scene, settings), overrides=overrides(settings))

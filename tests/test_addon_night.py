@@ -177,6 +177,19 @@ def test_auto_mode_builds_a_night_in_environment_mode(night):
     assert "Skymodel Atmosphere 00" not in bpy.data.objects
     assert _image(night.world).shape == (16, 32, 3)
     assert "night (sun at -44.6°" in s.last_info and "Environment" in s.last_info
+    # the panel's plan box says so too
+    from blender_addon import ui
+
+    labels = []
+
+    class Layout:
+        def __getattr__(self, name):  # column, row, box, prop, ...: record labels, ignore the rest
+            if name == "label":
+                return lambda text="", **kw: labels.append(text)
+            return lambda *a, **kw: self
+
+    ui.draw_plan(Layout(), bpy.context, s)
+    assert labels[0].startswith("Volumetric:") and labels[1].startswith("Night (sun at -44.6°")
 
 
 def test_a_baked_evening_runs_into_the_night(night, tmp_path):
