@@ -188,10 +188,18 @@ def render_day(o, progress=print) -> list:
     every frame baked with one shared solve (Bake Time of Day, the images in
     ``--out``/bake-<id>/), then every frame rendered to ``--out``/frame_NNNN.png. Returns
     the paths written."""
-    from . import animation
-
     _ensure_registered()
     scene = _new_scene(o)
+    # the new scene as the context's: Blender writes animated values back to the settings (which
+    # the bake reads frame by frame) and evaluates the exposure keys only in the active scene's
+    # depsgraph; without this every frame read the last frame's time (one sky for all)
+    with bpy.context.temp_override(scene=scene, view_layer=scene.view_layers[0]):
+        return _render_day(scene, o, progress)
+
+
+def _render_day(scene, o, progress) -> list:
+    from . import animation
+
     s = scene.world.skymodel
     _apply_options(s, o)
     frames = animation.animate_day(scene, s, o.date, o.time_from, o.time_to, o.every, o.timezone)

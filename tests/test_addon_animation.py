@@ -235,7 +235,12 @@ def test_headless_entry_renders_a_day(new_sky_scene, small_preview, tmp_path, mo
     pngs = sorted(p.name for p in out.glob("frame_*.png"))
     assert pngs == ["frame_0001.png", "frame_0002.png", "frame_0003.png"]
     assert (out / "frame_0001.png").read_bytes() != (out / "frame_0003.png").read_bytes()
-    assert len(list(out.glob("bake-*/sky_*.exr"))) == 3
+    exrs = sorted(out.glob("bake-*/sky_*.exr"))
+    assert len(exrs) == 3
+    # each frame its own sky (the keyframes evaluated in the render scene): the baked images and
+    # the rendered frames' pixels differ (PNG bytes alone differ by their metadata)
+    assert exrs[0].read_bytes() != exrs[2].read_bytes()
+    assert not np.array_equal(_pixels(out / "frame_0001.png"), _pixels(out / "frame_0003.png"))
     # refused before any work, naming the option
     capsys.readouterr()
     # (a night is no longer refused: tests/test_addon_night.py)
