@@ -4,6 +4,13 @@ moon lamp, exposure, and the sky as shown (log-average luminance of the sky abov
 2^exposure, in the colour scale: 1 = 683 cd/m2) per frame.
 
     PYTHONPATH=$PWD nice -n 5 .venv/bin/python benchmarks/bench_blender_night.py --width 128 --every 3h
+
+``--sheet PATH``: instead, the headless day (``python -m blender_addon.render --date ...``, Cycles
+frames of the baked sky) from 00:00 to 23:59 UTC every ``--every``, as one contact sheet PNG
+(docs/img/blender_night_24h.png):
+
+    PYTHONPATH=$PWD nice -n 5 .venv/bin/python benchmarks/bench_blender_night.py --every 2h \
+        --sheet docs/img/blender_night_24h.png
 """
 
 from __future__ import annotations
@@ -23,8 +30,11 @@ def main(argv=None):
     ap.add_argument("--width", type=int, default=128)
     ap.add_argument("--every", default="3h")
     ap.add_argument("--quality", default="preview")
+    ap.add_argument("--sheet", default=None, help="write the headless day's frames as a contact sheet PNG")
     a = ap.parse_args(argv)
     os.environ["SKYMODEL_CACHE_DIR"] = tempfile.mkdtemp(prefix="skymodel-night-bench-")
+    if a.sheet:
+        return sheet(a)
     import bpy
     import numpy as np
 
@@ -77,6 +87,26 @@ def main(argv=None):
         print(f"  {f.time_utc[11:16]}Z sun {f.elevation_deg:6.1f}  exposure {sc.view_settings.exposure:+6.2f} EV  "
               f"sun lamp {rec['frames'][str(k)]['sun_strength']:.3g}  moon lamp {moon:.3g} ({683 * moon:.3g} lux)  "
               f"sky shown {shown(rgb):.4g}")
+
+
+def sheet(a):
+    import numpy as np
+    from PIL import Image
+
+    from blender_addon import render
+    from skymodel.cli.timelapse import contact_sheet
+    from skymodel.render import image_io
+
+    out = tempfile.mkdtemp(prefix="skymodel-night-day-")
+    t0 = time.perf_counter()
+    rc = render.main(["--location", a.location, "--date", a.date, "--from", "00:00", "--to", "23:59", "--every",
+                      a.every, "--timezone", "UTC", "--size", "128x64", "--samples", "16", "--image-width",
+                      str(2 * a.width), "--quality", a.quality, "--out", out])
+    assert rc == 0, rc
+    frames = sorted(f for f in os.listdir(out) if f.startswith("frame_"))
+    images = [np.asarray(Image.open(os.path.join(out, f)).convert("RGB")) for f in frames]
+    image_io.write_png(a.sheet, contact_sheet(images))
+    print(f"{len(frames)} frames in {time.perf_counter() - t0:.0f} s -> {a.sheet}")
 
 
 if __name__ == "__main__":
