@@ -30,6 +30,16 @@ What is built and why
     set to UTC, so the keyed fields read as UTC, and an hour repeated at a daylight-saving
     change stays two distinct keys), and sets the scene's frame range. Then Bake Time of Day.
 
+    **Through the night** (issue 24): a frame whose sun is below -18 is baked as the core's
+    night (``render_environment(..., time_iso=, night="auto")``: moonlit sky, stars, glow; no
+    sunlit sky), its sun lamp at strength 0 and the moon lamp from the core's ``info["moon"]``,
+    so a 24-hour Animate Day bakes without refusal. The exposure keyed at every frame is the
+    core's environment exposure of that frame (what Build Sky sets for that instant: the darker
+    of the incident-light meter, the moon lamp counted, and the sky meter), a continuous and
+    monotonic function of the light, so a night frame is shown darker than the day without
+    flicker (docs/blender.md "The night"). Night frames need Environment mode and our model
+    (:func:`physics.resolve` refuses others naming the frame).
+
 Where the images go
     ``folder`` when given; else ``//skymodel_sky/bake-<id>/`` beside the saved .blend
     (a relative path: the folder travels with the .blend); else, for an unsaved file, the
@@ -457,7 +467,7 @@ def animate_day(scene, settings, date, time_from, time_to, every, timezone=None)
 
     sky = physics.resolve(settings.to_params())
     frames = timeline.day_frames(sky.atmosphere.latitude, sky.atmosphere.longitude, date, time_from, time_to, every,
-                                 timezone)
+                                 timezone, allow_night=True)  # a day runs through the night (Environment mode)
     if any(f.time_utc[17:19] != "00" for f in frames):
         raise SkymodelInputError("every", every, "a step of whole minutes (the settings hold minutes)")
     settings.sun_source = "TIME"

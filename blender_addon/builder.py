@@ -588,6 +588,12 @@ def _write_info(tx: Transaction, settings, result):
     if moon:
         lines.append(f"Moon {moon['elevation_deg']:.1f}° el, {moon['azimuth_deg']:.1f}° az, "
                      f"{100 * moon['illuminated_fraction']:.0f} % lit, {moon['illuminance_lux']:.3g} lux")
+    if isinstance(night := info.get("night"), dict) and result.sun_elevation_deg < 0.0:  # the core's night
+        from . import physics
+
+        lines.append(("Night (no sunlit sky below -18°): " if result.sun_elevation_deg < physics.MIN_SUN_ELEVATION_DEG
+                      else "Night's light: ") + ("moonlit sky, " if night.get("moonlit_sky") else "")
+                     + f"{int(night.get('stars_drawn', 0))} stars and the glow in the image")
     if sky_time := info.get("time_local"):
         lines.append(f"Time {sky_time}")
     if info.get("live"):

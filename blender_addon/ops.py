@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import threading
 import time
@@ -93,6 +94,9 @@ def prepare(context, settings=None, progress=None, params=None, live_stage=None)
         auto_plan = scene_description.make_plan(scene, settings)
         params = scene_description.params_from_plan(params, auto_plan)
         auto_info = scene_description.plan_info(auto_plan)
+        if params.mode == "VOLUMETRIC" and (night := scene_description.night_message(params)):
+            params = dataclasses.replace(params, mode="ENVIRONMENT")  # the volumes show no stars or glow
+            auto_info["warnings"].append(f"Auto plan: {night}")
         if progress:
             for line in scene_description.plan_lines(auto_plan):
                 progress(f"plan: {line}")

@@ -52,7 +52,9 @@ from skymodel.render.environment import (  # noqa: F401  (the colour scale and e
 from skymodel.render.sky import add_sun_disc
 from skymodel.sun import limb_darkening
 
-#: Lowest sun elevation the add-on accepts (the registry's: below it the sky is night).
+#: Lowest sun elevation of a sunlit sky (the registry's, -18: astronomical dusk). Angles entered
+#: directly are checked against it; a date/time may put the sun lower (the night: the core
+#: renders the moonlit sky, stars and glow, :func:`is_night`).
 MIN_SUN_ELEVATION_DEG = scene.parameter("sun_elevation").minimum
 #: Sky models the Environment can come from (names of ``skymodel.models``, and "blender":
 #: Blender's own Sky Texture node): only models with an absolute radiance (the CIE skies
@@ -170,10 +172,10 @@ def resolve(params: SkyParams) -> ResolvedSky:
         if (scene.month_of(utc), scene.day_of_year(utc)) != (month, day):
             month, day = scene.month_of(utc), scene.day_of_year(utc)
             atm = atmosphere(month, day)
-        sun = scene.place_sun(atm.latitude, atm.longitude, instant.local_iso)
+        sun = scene.place_sun(atm.latitude, atm.longitude, instant.local_iso, allow_night=True)
         local, zone = instant.local_iso, instant.timezone
     elif p.time_utc is not None:  # the date places the sun; the angle fields are not used
-        sun = scene.place_sun(atm.latitude, atm.longitude, p.time_utc)
+        sun = scene.place_sun(atm.latitude, atm.longitude, p.time_utc, allow_night=True)
         local, zone = None, None
     else:
         sun = scene.place_sun(elevation_deg=p.sun_elevation_deg, azimuth_deg=p.sun_azimuth_deg)
@@ -193,7 +195,27 @@ def resolve(params: SkyParams) -> ResolvedSky:
         raise _err("sky_model", p.sky_model, "ours in Volumetric mode (the other models make environment images only)")
     if p.sky_model not in ("ours", "blender") and p.observer_altitude_m != 0.0:
         raise _err("observer_altitude", p.observer_altitude_m, f"0 m with the {p.sky_model} sky model (a ground observer)")
+    if float(elev) < MIN_SUN_ELEVATION_DEG:  # night (only a date gets here): the core's night, Environment
+        _check_night(p, float(elev), iso)
     return ResolvedSky(p, atm, float(elev), float(az), dist, iso, local, zone)
+
+
+def is_night(sun_elevation_deg: float) -> bool:
+    """Night: the sun below :data:`MIN_SUN_ELEVATION_DEG` (-18), where the core renders no sunlit
+    sky, only the night's light (:func:`skymodel.render.night.sunlit`)."""
+    return float(sun_elevation_deg) < MIN_SUN_ELEVATION_DEG
+
+
+def _check_night(p: SkyParams, elevation_deg: float, time_iso) -> None:
+    """What a night sky (sun below -18, from a date) needs: our model (the only one with the
+    night's light) in Environment mode (the volumes have no stars, glow or moon disc: a moonless
+    night would render black; Auto mode switches to Environment by itself, :mod:`.ops`)."""
+    at = f"(the sun is at {elevation_deg:.1f} degrees at {time_iso}: night)"
+    if p.mode != "ENVIRONMENT":
+        raise _err("mode", p.mode, f"Environment at night {at}; the volumes show no stars or glow")
+    if p.sky_model != "ours":
+        raise _err("sky_model", p.sky_model, f"ours at night {at}; the other models and Blender's Sky Texture "
+                                             "have no night")
 
 
 def image_width(params: SkyParams) -> int:

@@ -5,8 +5,9 @@ degrees) and converted to degrees for the core. The properties of user parameter
 by :func:`registry_property` from the parameter registry (:mod:`skymodel.scene`: default,
 bounds, description) and the quality registry (:mod:`skymodel.render.quality`), so the UI
 cannot produce a value the core refuses; what it can still refuse (an unknown location
-name, a date that does not exist, a night-time date, a custom location without an
-aerosol type) is reported by the Build operator naming the parameter.
+name, a date that does not exist, a night-time date (sun below -18) in Volumetric mode or with
+another sky model than ours, a custom location without an aerosol type) is reported by the Build
+operator naming the parameter.
 """
 
 from __future__ import annotations
@@ -128,7 +129,7 @@ REGISTRY_PROPERTIES = {
 def angle_degrees(radians: float, name: str) -> float:
     """Degrees of an angle property (stored as float32 radians) for the core: a value
     within float32 rounding of the registry's bound of ``name`` is that bound, so the
-    documented bounds (latitude 90, sun elevation -12) pass the core's check instead of
+    documented bounds (latitude 90, sun elevation -18) pass the core's check instead of
     arriving as 90.0000025 and being refused."""
     deg = math.degrees(radians)
     p = scene.parameter(name)

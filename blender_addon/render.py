@@ -173,7 +173,9 @@ def _check_sequence(o) -> None:
     custom = o.location is None and o.lat is not None
     atm = Atmosphere(location=None if custom else (o.location or "rural"), latitude=o.lat if custom else None,
                      longitude=o.lon if custom else None, aerosol=o.aerosol)
-    timeline.day_frames(atm.latitude, atm.longitude, o.date, o.time_from, o.time_to, o.every, o.timezone)
+    # through the night too: frames below -18 render the night's light (as skymodel timelapse's --night auto)
+    timeline.day_frames(atm.latitude, atm.longitude, o.date, o.time_from, o.time_to, o.every, o.timezone,
+                        allow_night=True)
     folder = os.path.abspath(o.out)
     if os.path.exists(folder) and not os.path.isdir(folder):
         raise SkymodelInputError("--out", o.out, "a folder for the frames (this is a file)")
@@ -186,10 +188,18 @@ def render_day(o, progress=print) -> list:
     every frame baked with one shared solve (Bake Time of Day, the images in
     ``--out``/bake-<id>/), then every frame rendered to ``--out``/frame_NNNN.png. Returns
     the paths written."""
-    from . import animation
-
     _ensure_registered()
     scene = _new_scene(o)
+    # the new scene as the context's: Blender writes animated values back to the settings (which
+    # the bake reads frame by frame) and evaluates the exposure keys only in the active scene's
+    # depsgraph; without this every frame read the last frame's time (one sky for all)
+    with bpy.context.temp_override(scene=scene, view_layer=scene.view_layers[0]):
+        return _render_day(scene, o, progress)
+
+
+def _render_day(scene, o, progress) -> list:
+    from . import animation
+
     s = scene.world.skymodel
     _apply_options(s, o)
     frames = animation.animate_day(scene, s, o.date, o.time_from, o.time_to, o.every, o.timezone)

@@ -101,7 +101,9 @@ def describe(scene, settings) -> object:
     cams = cameras_of(scene, settings.plan_cameras)
     views = [camera_view(c, scale) for c in cams] or [planner.CameraView()]
     params = dataclasses.replace(settings.to_params(), mode="ENVIRONMENT")
-    sun_el = physics.resolve(params).sun_elevation_deg
+    # at night (a date with the sun below -18) the planner's sun is its lowest, -18: its tables end
+    # there, and Auto builds the night in Environment mode (ops.prepare)
+    sun_el = max(physics.resolve(params).sun_elevation_deg, physics.MIN_SUN_ELEVATION_DEG)
     r = scene.render
     pct = r.resolution_percentage / 100.0
     return planner.SceneDescription(
@@ -122,6 +124,17 @@ def overrides(settings) -> dict:
     if int(settings.override_n_layers) > 0:
         out["n_layers"] = int(settings.override_n_layers)
     return out
+
+
+def night_message(params) -> str | None:
+    """Why Auto builds in Environment mode whatever the plan says, for a date/time whose sun is
+    below -18 (the volumes show no stars, glow or moon disc; :func:`physics.resolve` refuses
+    Volumetric mode there); None in daytime and twilight. Raises on bad input as ``resolve``."""
+    el = physics.resolve(dataclasses.replace(params, mode="ENVIRONMENT")).sun_elevation_deg
+    if not physics.is_night(el):
+        return None
+    return (f"night (sun at {el:.1f}°, below {physics.MIN_SUN_ELEVATION_DEG:g}°): Environment mode, since the "
+            "volumes show no stars, glow or moon disc")
 
 
 def make_plan(scene, settings):

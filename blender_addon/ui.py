@@ -139,6 +139,8 @@ def draw_plan(layout, context, s):
         return
     lines = scene_description.plan_lines(plan)
     box.label(text=lines[0], icon="INFO")
+    if plan.mode == "volumetric" and (night := scene_description.night_message(s.to_params())):
+        box.label(text=night[0].upper() + night[1:], icon="INFO")  # Build Sky builds Environment (ops.prepare)
     for w in plan.warnings():
         box.label(text=w, icon="ERROR")
     for d in plan:

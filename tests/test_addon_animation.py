@@ -196,13 +196,14 @@ def test_a_cancelled_or_refused_bake_leaves_the_scene_unchanged(day, tmp_path, m
         animation.bake(bpy.context, folder=str(tmp_path / "bake"))
     assert _snapshot(sc) == before
     assert not (tmp_path / "bake").exists() or not any((tmp_path / "bake").iterdir())
-    # a frame at night is refused before any rendering, naming the frame
+    # a bad frame is refused before any rendering, naming the frame (a night frame is built since
+    # issue 24: tests/test_addon_night.py)
     monkeypatch.setattr(animation, "CANCEL_AT", None)
     sc.frame_end = 4
     s = sc.world.skymodel
-    s.hour, s.minute = 23, 59  # 01:59 CEST: night
-    s.keyframe_insert("hour", frame=4)
-    s.keyframe_insert("minute", frame=4)
+    s.month, s.day = 2, 30  # no such day
+    s.keyframe_insert("month", frame=4)
+    s.keyframe_insert("day", frame=4)
     with pytest.raises(SkymodelInputError, match="frame 4"):
         animation.bake(bpy.context, folder=str(tmp_path / "bake"))
     assert not (tmp_path / "bake").exists() or not any((tmp_path / "bake").iterdir())
@@ -234,10 +235,15 @@ def test_headless_entry_renders_a_day(new_sky_scene, small_preview, tmp_path, mo
     pngs = sorted(p.name for p in out.glob("frame_*.png"))
     assert pngs == ["frame_0001.png", "frame_0002.png", "frame_0003.png"]
     assert (out / "frame_0001.png").read_bytes() != (out / "frame_0003.png").read_bytes()
-    assert len(list(out.glob("bake-*/sky_*.exr"))) == 3
+    exrs = sorted(out.glob("bake-*/sky_*.exr"))
+    assert len(exrs) == 3
+    # each frame its own sky (the keyframes evaluated in the render scene): the baked images and
+    # the rendered frames' pixels differ (PNG bytes alone differ by their metadata)
+    assert exrs[0].read_bytes() != exrs[2].read_bytes()
+    assert not np.array_equal(_pixels(out / "frame_0001.png"), _pixels(out / "frame_0003.png"))
     # refused before any work, naming the option
     capsys.readouterr()
-    # (a December evening: with the sun's bound at -18 a June 23:59 at Zaragoza is still twilight)
-    assert render.main([*day[:2], "--date", "2026-12-21", *day[4:6], "--to", "23:59", *day[8:],
-                        "--out", str(tmp_path / "night")]) == 2
-    assert "time_to=" in capsys.readouterr().err and not (tmp_path / "night").exists()
+    # (a night is no longer refused: tests/test_addon_night.py)
+    assert render.main([*day[:2], "--date", "2026-12-21", *day[4:6], "--to", "19:59", *day[8:],
+                        "--out", str(tmp_path / "bad")]) == 2
+    assert "time_to=" in capsys.readouterr().err and not (tmp_path / "bad").exists()

@@ -311,3 +311,25 @@ def test_a_panel_at_preview_quality_needs_no_second_build_and_remove_sky_stops_l
     job.wait(300)
     live.tick()
     assert "Skymodel Sun" not in bpy.data.objects
+
+
+def test_live_update_follows_a_time_into_the_night(live_scene):
+    """Dragging the hour from dusk into the night (issue 24): the live preview is the core's night
+    (sun lamp 0, the info box's night line), no refusal."""
+    sc, clock, live = live_scene
+    s = sc.world.skymodel
+    s.sun_source, s.timezone, s.moon_lamp = "TIME", "UTC", True
+    s.year, s.month, s.day, s.hour, s.minute = 2026, 12, 21, 16, 0  # rural: sun -5.8
+    s.live_update = True
+    for hour in (17, 18, 20):  # -14.9, -24.7, -44.6 deg
+        clock.t += 0.05
+        s.hour = hour
+    clock.t += live.DEBOUNCE_S
+    live.tick()
+    job = _run_job(live)
+    assert job.stage == "preview"
+    clock.t += 0.1
+    live.tick()
+    assert live.STATE.shown[1] == "preview"
+    assert _lamp(sc).data.energy == 0.0 and _lamp(sc)["skymodel_sun_elevation_deg"] < -40.0
+    assert "Night (no sunlit sky below -18°)" in s.last_info and "Live update: preview" in s.last_info
