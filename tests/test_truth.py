@@ -29,6 +29,9 @@ def test_statistics_of_known_errors():
     np.testing.assert_allclose(st["worst_noise"], [0.002, 0.002])
     np.testing.assert_allclose(st["median_noise"], MEDIAN_NOISE_FACTOR * 0.002 / 2.0)
     np.testing.assert_allclose(st["noise_max"], 0.002)
+    np.testing.assert_allclose(st["mean_signed"], [np.mean([0.01, -0.03, 0.002, -0.004]),
+                                                   np.mean([-0.02, 0.0, 0.004, 0.001])])
+    np.testing.assert_allclose(st["mean_noise"], 0.002 / 2.0)
 
 
 def test_noise_is_relative_to_the_truth_and_falls_as_one_over_sqrt_n():

@@ -18,6 +18,7 @@ MC``, the relative standard error of that direction's truth):
 * *median* = median over the directions of ``|rel|``; its noise ``1.2533 * rms(s) /
   sqrt(N)`` (the standard error of a sample median of N values with noise s, normal
   approximation);
+* *mean* = the mean of ``rel`` (signed: an overall bias); its noise ``rms(s) / sqrt(N)``;
 * *worst* = the largest ``|rel|`` over the directions outside the sun's disc and the
   aureole's first 2 degrees (angle to the sun's centre > :data:`EXCLUDE_DEG`); its noise
   the ``s`` of that direction.
@@ -114,7 +115,8 @@ def truth_statistics(marcher, mc, mc_stderr, angle_to_sun=None, exclude_deg=EXCL
 
     Directions whose ``angle_to_sun`` (deg, (N,); None: all count) is at most
     ``exclude_deg`` are left out of every statistic. Returns a dict of (W,) arrays:
-    ``median`` (median |rel|), ``median_signed``, ``median_noise``, ``worst`` (largest
+    ``median`` (median |rel|), ``median_signed``, ``median_noise``, ``mean_signed``
+    (the mean rel: an overall bias) and ``mean_noise`` (rms(s) / sqrt(N)), ``worst`` (largest
     |rel|, signed as it is), ``worst_noise`` (that direction's relative MC stderr),
     ``worst_index`` (its row in the inputs), ``noise_max`` (the largest relative MC
     stderr of any direction), and ``n`` (directions counted)."""
@@ -138,6 +140,7 @@ def truth_statistics(marcher, mc, mc_stderr, angle_to_sun=None, exclude_deg=EXCL
     wi = np.argmax(np.abs(rel), axis=0)
     cols = np.arange(t.shape[1])
     return dict(median=np.median(np.abs(rel), axis=0), median_signed=np.median(rel, axis=0),
+                mean_signed=rel.mean(axis=0), mean_noise=np.sqrt(np.mean(s * s, axis=0) / n),
                 median_noise=MEDIAN_NOISE_FACTOR * np.sqrt(np.mean(s * s, axis=0) / n),
                 worst=rel[wi, cols], worst_noise=s[wi, cols], worst_index=rows[wi],
                 noise_max=s.max(axis=0), n=np.full(t.shape[1], n))
