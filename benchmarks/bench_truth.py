@@ -94,6 +94,21 @@ def _profile_hash(prof):
     return h.hexdigest()[:12]
 
 
+def sources_hash():
+    """Hash of the renderer's sources (every skymodel/**/*.py but the validation wing and
+    the CLI): the key of the cached marcher results, so a re-run re-marches exactly when
+    the code that renders changed."""
+    root = os.path.join(_HERE, "..", "skymodel")
+    h = hashlib.sha1()
+    for dirpath, dirnames, files in sorted(os.walk(root)):
+        dirnames[:] = sorted(d for d in dirnames if d not in ("validation", "cli", "__pycache__"))
+        for f in sorted(files):
+            if f.endswith(".py"):
+                with open(os.path.join(dirpath, f), "rb") as fh:
+                    h.update(f.encode() + fh.read())
+    return h.hexdigest()[:10]
+
+
 class Scene:
     def __init__(self, aerosol, elev, cache):
         self.aerosol, self.elev, self.cache = aerosol, float(elev), cache
@@ -126,7 +141,7 @@ class Scene:
         os.replace(tmp, f)
 
     def march_file(self, quality):
-        return os.path.join(self.cache, f"march_{self.name}_{quality}_{git_revision()}.npz")
+        return os.path.join(self.cache, f"march_{self.name}_{quality}_{sources_hash()}.npz")
 
 
 def _merge(mc, rows, res, n_paths, seed):
