@@ -25,6 +25,7 @@ profile, and grow: a re-run adds paths where the target is not met yet.
     nice -n 5 python benchmarks/bench_truth.py march --scenes all        # the presets (cached)
     python benchmarks/bench_truth.py report --write-docs                 # docs/accuracy.md + img/
     python benchmarks/bench_truth.py pilot --scenes desert:20            # per-path noise and time
+    python benchmarks/bench_truth.py views --scenes rural:20             # every view's error, per preset
     nice -n 5 python benchmarks/bench_truth.py knobs --scenes rural:20 --base final \
         --variants "table_mu=64;table_phi=48;table_altitudes=48;exact=1"  # one knob at a time vs MC
 
@@ -269,6 +270,20 @@ def knobs(scene, base, variants):
               + "/".join(f"{100 * x:+.2f}" for x in rel[zen]) + f" | {secs:.1f} |", flush=True)
 
 
+def views_table(scene):
+    """Per view: marcher / MC - 1 (%) at each preset (cached march of these sources) and the
+    MC's relative standard error."""
+    prof, mc = scene.load_mc()
+    e0 = np.asarray(prof.solar_irradiance)[None, :]
+    truth, se = mc["mean"] / e0, mc["se"] / e0
+    rels = {q: run_march(scene, q)[0] / truth - 1.0 for q in QUALITY_NAMES if os.path.exists(scene.march_file(q))}
+    print(f"{scene.name}: view (zenith/az. from sun) | angle to sun | " + " | ".join(rels) + " (%, 450/550/650) | MC se (%)")
+    for i, v in enumerate(scene.views):
+        cells = " | ".join("/".join(f"{100 * x:+.2f}" for x in r[i]) for r in rels.values())
+        print(f"{v[0]:g}/{v[1]:g} | {scene.angle[i]:.1f} | {cells} | "
+              + "/".join(f"{100 * x:.2f}" for x in se[i] / truth[i]))
+
+
 def pilot(scene, n_paths):
     prof = scene.mc_profile()
     for guide in sorted({0.0, SUN_GUIDE[scene.aerosol]}):
@@ -402,7 +417,7 @@ def write_doc(body, doc=DOC):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("what", choices=("pilot", "mc", "march", "report", "knobs"))
+    ap.add_argument("what", choices=("pilot", "mc", "march", "report", "knobs", "views"))
     ap.add_argument("--base", default="final", help="knobs: the preset the variants change")
     ap.add_argument("--variants", default="", help="knobs: ';'-separated 'field=value,...' variants")
     ap.add_argument("--scenes", default="all")
@@ -419,6 +434,9 @@ def main(argv=None):
     if a.what == "pilot":
         for sc in scenes:
             pilot(sc, a.pilot_paths)
+    elif a.what == "views":
+        for sc in scenes:
+            views_table(sc)
     elif a.what == "knobs":
         for sc in scenes:
             knobs(sc, a.base, a.variants)
