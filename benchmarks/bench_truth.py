@@ -53,7 +53,7 @@ from skymodel.render.marcher import SkyMarcher  # noqa: E402
 from skymodel.render.quality import QUALITIES  # noqa: E402
 from skymodel.render.rays import sun_direction  # noqa: E402
 from skymodel.validation.montecarlo import trace_radiance  # noqa: E402
-from skymodel.validation.truth import (EXCLUDE_DEG, angle_to_sun_deg, paths_for_noise,  # noqa: E402
+from skymodel.validation.truth import (angle_to_sun_deg, paths_for_noise,  # noqa: E402
                                        truth_statistics, view_directions, view_set)
 
 AEROSOLS = {"rural": 0.2, "desert": 0.5}
