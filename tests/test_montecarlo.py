@@ -566,3 +566,58 @@ def test_sunlit_estimator_finite_for_observers_and_the_ground(profile, h):
         assert r.radiance[0].max() == 0.0 and np.all(r.radiance[1:] > 0.0)
     else:
         assert np.all(r.radiance > 0.0)
+
+
+# --------------------------------------------------------------------------------------
+# the sun guide (sharp forward peaks): new directions partly drawn around the sun
+# --------------------------------------------------------------------------------------
+
+
+def test_sun_guided_directions_carry_the_exact_weights(profile):
+    """_guided_direction draws from the mixture q and weighs by p / q: the weights average
+    to the phase functions' total (1 for normalised tables), and the weighted fraction
+    of directions within 10 degrees of the sun equals that of plain phase sampling."""
+    from skymodel.validation.montecarlo import _guided_direction, _rotate
+
+    med = _Medium(profile, np.array([1]))
+    rng = np.random.default_rng(3)
+    m = 200_000
+    d_in = np.broadcast_to(direction_from_angles(60.0, 0.0), (m, 3)).copy()
+    sun = sun_direction(30.0, 180.0).reshape(3)
+    sig_sc = med.components_at(np.full(m, 800.0), np.zeros(m, dtype=int))[:-1]
+    w = np.zeros(m, dtype=int)
+    d, wgt = _guided_direction(med, d_in, w, sig_sc, sun, 0.3, rng)
+    se = wgt.std() / np.sqrt(m)
+    assert abs(wgt.mean() - 1.0) < 4 * se + 2e-3
+    near = (d @ sun) > np.cos(np.radians(10.0))
+    guided_frac = np.mean(wgt * near)
+    # plain sampling: scatterer by sigma_c / sigma_s, angle from its phase function
+    comp = (rng.random(m) * sig_sc.sum(0) >= np.cumsum(sig_sc, 0)).sum(0)
+    cos_t = np.where(comp == 0, med.sample_rayleigh_cos(w, rng), 0.0)
+    for rg in range(med.n_regime):
+        k = comp == rg + 1
+        cos_t[k] = med.sample_aerosol_cos(rg, w[k], rng)
+    plain = (_rotate(d_in, cos_t, rng) @ sun) > np.cos(np.radians(10.0))
+    se2 = np.hypot(np.std(wgt * near), np.std(plain)) / np.sqrt(m)
+    assert abs(guided_frac - plain.mean()) < 4 * se2
+    assert near.mean() > 2.0 * plain.mean()  # the guide puts more samples there
+
+
+@pytest.mark.parametrize("sun_el", [20.0, 3.0])
+def test_sun_guided_nee_agrees_with_plain_nee(profile, sun_el):
+    """sun_guide only changes the sampling (directions at collisions and ground bounces,
+    the roulette): the same radiances within the standard errors, ground included."""
+    dirs = direction_from_angles([0.0, 70.0, 85.0, 60.0], [0.0, 180.0, 0.0, 90.0])
+    a = trace_radiance(profile, dirs, sun_el, 180.0, n_paths=4000, seed=21)
+    b = trace_radiance(profile, dirs, sun_el, 180.0, n_paths=4000, seed=22, sun_guide=0.3)
+    _assert_estimators_agree(a, b)
+
+
+def test_sun_guide_bad_values_are_rejected(profile):
+    from skymodel.errors import SkymodelInputError
+
+    for bad in (-0.1, 1.0, float("nan")):
+        with pytest.raises(SkymodelInputError, match="sun_guide"):
+            trace_radiance(profile, [[0.0, 0.0, 1.0]], 10.0, 0.0, sun_guide=bad)
+    with pytest.raises(SkymodelInputError, match="sun_guide"):
+        trace_radiance(profile, [[0.0, 0.0, 1.0]], 10.0, 0.0, sun_guide=0.2, estimator="sunlit")

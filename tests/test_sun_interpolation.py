@@ -73,10 +73,37 @@ def test_field_read_in_blocks_is_the_same(monkeypatch):
     tab = field._interp_table()
     assert np.shares_memory(field.source, tab)
     src = np.moveaxis(field.source, 0, -1)
-    np.testing.assert_array_equal(tab[..., 0, :], src)
+    np.testing.assert_array_equal(tab[1:-1, ..., 0, :], src)
     # the table is float32 (the solver's precision): slopes computed in float64, then rounded
     assert tab.dtype == np.float32
-    np.testing.assert_allclose(tab[..., 1, :], msm._log_slopes(field.mus_nodes, src.astype(float), axis=3), rtol=1e-6,
-                               atol=0)
+    np.testing.assert_allclose(tab[1:-1, ..., 1, :], msm._log_slopes(field.mus_nodes, src.astype(float), axis=3),
+                               rtol=1e-6, atol=0)
+    # the pole rows (mu = -1, +1): the azimuthal mean of the nearest ring, the same at every azimuth
+    np.testing.assert_allclose(tab[0, ..., 0, :], np.broadcast_to(src[0].mean(axis=0), src[0].shape), rtol=1e-6)
+    np.testing.assert_allclose(tab[-1, ..., 0, :], np.broadcast_to(src[-1].mean(axis=0), src[-1].shape), rtol=1e-6)
     # a scalar point gives (n_wl,)
     assert field.source_at(1000.0, 0.5, 1.0, 0.2).shape == (2,)
+
+
+def test_the_zenith_reads_the_azimuthal_mean_not_one_azimuth():
+    """Above the top ring of zenith-cosine nodes (never at the pole: double Gauss-Legendre)
+    the source is interpolated toward the ring's azimuthal mean at mu = 1: at the zenith
+    it is the same for every azimuth (before: clamped to the ring, it read the ring at the
+    view's own azimuth, 5.9 degrees toward or away from the sun at ``final``; issue 23)."""
+    prof = Atmosphere(location="rural", month=6, aod550=0.2).optical_profile((450.0, 650.0))
+    small = MarchSettings(exact=True, table_altitudes=8, table_mu=8, table_phi=4, table_steps=16, view_steps=16)
+    field = SkyMarcher(prof, 20.0, 180.0, 0.0, small).field
+    phi = np.linspace(0.0, np.pi, 9)
+    at_zenith = field.source_at(2000.0, 1.0, phi, 0.34)
+    # (rtol 1e-6: the float32 table; identical rows weighted differently round differently)
+    np.testing.assert_allclose(at_zenith, np.broadcast_to(at_zenith[0], at_zenith.shape), rtol=1e-6)
+    ring = field.source_at(2000.0, field.mu_nodes[-1], field.phi_nodes, 0.34)
+    np.testing.assert_allclose(at_zenith[0], ring.mean(axis=0), rtol=1e-3)  # the mean of the ring, not one node
+    assert np.ptp(ring[:, 0]) > 0.01 * ring[:, 0].mean()  # the ring itself varies with azimuth
+    # between the ring and the pole: linear in mu
+    mid = 0.5 * (field.mu_nodes[-1] + 1.0)
+    np.testing.assert_allclose(field.source_at(2000.0, mid, field.phi_nodes[0], 0.34),
+                               0.5 * (ring[0] + at_zenith[0]), rtol=1e-3)
+    # the nadir likewise
+    at_nadir = field.source_at(2000.0, -1.0, phi, 0.34)
+    np.testing.assert_allclose(at_nadir, np.broadcast_to(at_nadir[0], at_nadir.shape), rtol=1e-6)

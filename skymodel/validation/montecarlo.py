@@ -52,6 +52,21 @@ steps only):
 * **Observers in space** first move to the entry point of the view ray
   (:func:`~skymodel.render.rays.atmosphere_segment`); rays that miss the atmosphere see 0.
 
+**Sharp forward peaks: the sun guide** (``sun_guide`` > 0, "nee" only). The NEE at a
+vertex scores the aerosol phase function at the angle between the path's direction and
+the sun; for coarse dust (p(0) ~ 2e4 sr^-1, Jaenicke's desert of the paper model) a
+direction drawn from the previous vertex's phase function rarely lands inside that peak
+and then scores ~1e4: the plain estimate is heavy-tailed (typical runs 20-60 % low with
+small standard errors, rare runs far high). With the guide a fraction ``sun_guide`` of the
+new directions (at air collisions and ground bounces) is drawn from the aerosol phase
+function centred on the sun (regimes weighted by their column scattering), the rest as
+before, each weighted by the exact density of the mixture (one-sample balance
+heuristic); the Russian roulette then weighs a path by its weight times the next NEE's
+phase toward the sun, so a small weight heading into the peak is not promoted to 1.
+Every weight x score stays bounded. Measured (desert AOD 0.5, sun 20 deg, 650 nm, view
+80 deg toward the sun, 20000 paths, six seeds): plain NEE se 1.2-31 % between seeds;
+guided (0.5) 0.0155-0.0158 W m^-2 sr^-1 nm^-1, se 1.2-1.3 % every seed.
+
 **Deep twilight: the ``"sunlit"`` estimator** (``estimator="sunlit"``; the default
 ``"nee"`` is the scheme above). With the sun 12-18 degrees down the observer and nearly all
 the air a path visits lie in the Earth's shadow; the light comes from thin sunlit air far
@@ -188,6 +203,11 @@ class _Medium:
         self.albedo = np.asarray(profile.ground_albedo, dtype=float)[wl]
         self.e_sun = np.asarray(profile.solar_irradiance, dtype=float)[wl]
         self._build_phase_sampling()
+        # the sun guide's mixture weights: each aerosol regime's column scattering optical
+        # depth (per traced wavelength), normalised; equal weights where there is none
+        col = (0.5 * (self.lo[1:1 + self.n_regime] + self.hi[1:1 + self.n_regime]) * self.dh[None, :, None]).sum(axis=1)
+        tot = col.sum(axis=0, keepdims=True)
+        self.guide_weight = np.where(tot > 0, col / np.where(tot > 0, tot, 1.0), 1.0 / max(self.n_regime, 1))  # (R, W)
 
     @staticmethod
     def _components(s):
@@ -478,8 +498,88 @@ def _sample_scattering(med: _Medium, sig_sc, sig_s, sig_t, wl_idx, directions, r
     return wt, _rotate(directions, cos_t, rng)
 
 
-def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng):
-    """Trace one batch of paths; returns each path's summed contribution (W m^-2 sr^-1 nm^-1)."""
+def _sample_guide_cos(med: _Medium, w, rng):
+    """cos(angle to the sun) drawn from the sun guide: an aerosol regime from its column
+    weight (``_Medium.guide_weight``), then the angle from its normalised phase table."""
+    n_reg = med.n_regime
+    cw = med.guide_weight[:, w]  # (R, m)
+    reg = np.minimum((rng.random(w.size)[None, :] >= np.cumsum(cw, axis=0)).sum(axis=0), n_reg - 1)
+    ct = np.empty(w.size)
+    for rg in range(n_reg):
+        mk = reg == rg
+        if np.any(mk):
+            ct[mk] = med.sample_aerosol_cos(rg, w[mk], rng)
+    return ct
+
+
+def _guide_pdf(med: _Medium, d, w, sun):
+    """Density (per steradian) of the sun guide at directions ``d`` (m, 3)."""
+    mass = med.phase_mass[:, w]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (med.guide_weight[:, w] * med.aerosol_phase(d @ sun, w) / np.where(mass > 0, mass, 1.0)).sum(axis=0)
+
+
+def _guided_direction(med: _Medium, d_in, w, sig_sc, sun, alpha, rng):
+    """New directions after air collisions, drawn from the defensive mixture
+    q = (1 - alpha) x the physical phase function (the scatterer chosen from sig_sc, as
+    unguided) + alpha x the *sun guide* g(d.s): the column-weighted aerosol phase function
+    centred on the sun direction s (each regime's scattering optical depth at the path's
+    wavelength its weight, tables normalised). Returns (directions (m, 3), weight (m,)):
+    the weight is p(d_in.d) / q(d), with p = sum_c sig_c p_c / sig_s the physical density
+    (mass of a not-normalised table included), so the estimate stays unbiased.
+
+    Why: the next vertex's NEE scores p_aer(d.s), up to ~2e4 sr^-1 for coarse dust
+    (Jaenicke's desert, issue 20). Unguided, a direction lands inside that peak rarely and
+    then scores huge: the estimate is heavy-tailed (runs 20-60 % low with small standard
+    errors, rare runs far high). Guided, q >= alpha g there, so the product
+    weight x p_aer(d.s) stays bounded by about p(d_in.d) / alpha."""
+    m = d_in.shape[0]
+    n_reg = med.n_regime
+    sig_s = sig_sc.sum(axis=0)
+    guided = rng.random(m) < alpha
+    cos_t = np.empty(m)
+    base = np.empty((m, 3))
+    # physical part: scatterer from sig_c / sig_s, angle from its phase function about d_in
+    pi = np.flatnonzero(~guided)
+    if pi.size:
+        cum = np.cumsum(sig_sc[:, pi], axis=0)
+        comp_i = np.minimum((rng.random(pi.size) * sig_s[pi][None, :] >= cum).sum(axis=0), n_reg)
+        ct = np.empty(pi.size)
+        mk = comp_i == 0
+        if np.any(mk):
+            ct[mk] = med.sample_rayleigh_cos(w[pi][mk], rng)
+        for rg in range(n_reg):
+            mk = comp_i == rg + 1
+            if np.any(mk):
+                ct[mk] = med.sample_aerosol_cos(rg, w[pi][mk], rng)
+        cos_t[pi] = ct
+        base[pi] = d_in[pi]
+    # guide: a regime from its column weight, the angle from its phase function about s
+    gi = np.flatnonzero(guided)
+    if gi.size:
+        cos_t[gi] = _sample_guide_cos(med, w[gi], rng)
+        base[gi] = sun
+    d_new = _rotate(base, cos_t, rng)
+    # exact densities of the mixture at d_new (per steradian)
+    mu_in = _rowdot(d_in, d_new)
+    mass = med.phase_mass[:, w]  # (R, m)
+    ph = med.aerosol_phase(mu_in, w)  # (R, m)
+    f = sig_sc[0] * med.rayleigh_phase(mu_in, w) + (sig_sc[1:] * ph).sum(axis=0)  # sum_c sig_c p_c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        p_phys = (sig_sc[0] * med.rayleigh_phase(mu_in, w)
+                  + (sig_sc[1:] * ph / np.where(mass > 0, mass, 1.0)).sum(axis=0)) / sig_s
+    q = (1.0 - alpha) * p_phys + alpha * _guide_pdf(med, d_new, w, sun)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        wgt = np.where(q > 0.0, f / sig_s / np.where(q > 0.0, q, 1.0), 0.0)
+    return d_new, wgt
+
+
+def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng, sun_guide=0.0):
+    """Trace one batch of paths; returns each path's summed contribution (W m^-2 sr^-1 nm^-1).
+
+    ``sun_guide`` > 0: at air collisions the new direction comes from the mixture
+    (1 - sun_guide) x the physical phase function + sun_guide x the aerosol phase function
+    centred on the sun direction (:func:`_guided_direction`), weighted by the exact ratio."""
     n = dirs.shape[0]
     contrib = np.zeros(n)
     R, top_r = med.R, med.R + med.top
@@ -517,9 +617,12 @@ def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng):
             f = beta[ci] * (sig_sc * ph).sum(axis=0) / sig_t
             tau, _ = med.optical_depth_to_top(Pc, sun, wc)
             contrib[idx[ci]] += f * np.exp(-tau) * med.e_sun[wc]
-            # choose the scatterer and the new direction
-            wt, nxt_D[ci] = _sample_scattering(med, sig_sc, sig_s, sig_t, wc, Dc, rng)
-            beta[ci] *= wt
+            if sun_guide > 0.0:  # direction from the sun-guided mixture, exact weight
+                nxt_D[ci], wgt = _guided_direction(med, Dc, wc, sig_sc, sun, sun_guide, rng)
+                beta[ci] *= sig_s / sig_t * wgt
+            else:  # choose the scatterer and the new direction
+                wt, nxt_D[ci] = _sample_scattering(med, sig_sc, sig_s, sig_t, wc, Dc, rng)
+                beta[ci] *= wt
         # ---- reflection by the ground
         gi = np.flatnonzero(ev == _GROUND)
         if gi.size:
@@ -533,14 +636,33 @@ def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng):
                 tau, _ = med.optical_depth_to_top(Pg[lit], sun, wg[lit])
                 contrib[idx[li]] += beta[li] * a[lit] / np.pi * mu0[lit] * np.exp(-tau) * med.e_sun[wg[lit]]
             beta[gi] *= a
-            u1 = rng.random(gi.size)
-            cos_t = np.sqrt(u1)
-            nxt_D[gi] = _rotate(nrm, cos_t, rng)
+            if sun_guide > 0.0:  # cosine-weighted mixed with the sun guide, exact weight
+                guided = rng.random(gi.size) < sun_guide
+                cos_t = np.sqrt(rng.random(gi.size))
+                base = nrm.copy()
+                if np.any(guided):
+                    cos_t[guided] = _sample_guide_cos(med, wg[guided], rng)
+                    base[guided] = sun
+                d_new = _rotate(base, cos_t, rng)
+                p_cos = np.maximum(_rowdot(d_new, nrm), 0.0) / np.pi
+                q = (1.0 - sun_guide) * p_cos + sun_guide * _guide_pdf(med, d_new, wg, sun)
+                beta[gi] *= np.where(q > 0.0, p_cos / np.where(q > 0.0, q, 1.0), 0.0)
+                nxt_D[gi] = d_new
+            else:
+                u1 = rng.random(gi.size)
+                cos_t = np.sqrt(u1)
+                nxt_D[gi] = _rotate(nrm, cos_t, rng)
             J[gi] = 0
         D = nxt_D
         keep &= beta > 0.0
         if bounce + 1 >= _RR_START:
             q = np.minimum(1.0, beta)
+            if sun_guide > 0.0 and np.any(keep):
+                # roulette on the weight times the next NEE's phase toward the sun (4 pi x
+                # the guide's density, >= 1): a small weight heading into the aerosol's
+                # forward peak must not be promoted to 1 (it would score ~p(0) ~ 1e4)
+                kk = np.flatnonzero(keep)
+                q[kk] = np.minimum(1.0, beta[kk] * np.maximum(1.0, 4.0 * np.pi * _guide_pdf(med, D[kk], Wl[kk], sun)))
             survive = rng.random(beta.size) < q
             beta = np.where(survive, beta / np.where(q > 0, q, 1.0), 0.0)
             keep &= survive
@@ -1090,7 +1212,8 @@ def _trace_batch_sunlit(med: _Medium, origin, dirs, w, sun, max_bounces, rng):
 
 
 def trace_radiance(profile, directions, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m=0.0,
-                   n_paths=4096, max_bounces=64, seed=0, wavelength_batch=None, estimator="nee") -> MCResult:
+                   n_paths=4096, max_bounces=64, seed=0, wavelength_batch=None, estimator="nee",
+                   sun_guide=0.0) -> MCResult:
     """Monte Carlo estimate of the sky radiance (direct solar disc excluded).
 
     Parameters
@@ -1119,6 +1242,12 @@ def trace_radiance(profile, directions, sun_elevation_deg, sun_azimuth_deg, obse
         twilight) it has far lower variance, because plain paths almost never collide in
         the thin sunlit air above the shadow. With the sun up it costs more per path
         (densities at ``_LINE_INTERVALS`` + 1 nodes per lit line).
+    sun_guide : ``"nee"`` only: the fraction (0 <= sun_guide < 1, default 0: off, the
+        random streams as before) of new directions at air collisions drawn from the
+        aerosol phase function centred on the sun direction instead of the physical phase
+        function, each weighted by the exact density of the mixture (one-sample balance
+        heuristic; unbiased). For aerosols with a sharp forward peak (coarse dust,
+        p(0) ~ 1e4 sr^-1) the plain NEE is heavy-tailed; 0.1-0.3 bounds its weights.
 
     Returns
     -------
@@ -1144,7 +1273,14 @@ def trace_radiance(profile, directions, sun_elevation_deg, sun_azimuth_deg, obse
         raise SkymodelInputError("observer_altitude_m", observer_altitude_m, "a finite altitude >= 0 m")
     if estimator not in ESTIMATORS:
         raise SkymodelInputError("estimator", estimator, "one of: " + ", ".join(ESTIMATORS))
-    trace = _trace_batch if estimator == "nee" else _trace_batch_sunlit
+    sun_guide = float(sun_guide)
+    if not (0.0 <= sun_guide < 1.0) or (sun_guide > 0.0 and estimator != "nee"):
+        raise SkymodelInputError("sun_guide", sun_guide, "0 <= sun_guide < 1 (> 0 only with estimator 'nee')")
+    if estimator == "nee":
+        def trace(*args):
+            return _trace_batch(*args, sun_guide=sun_guide)
+    else:
+        trace = _trace_batch_sunlit
 
     n_wl = profile.n_wavelengths
     if wavelength_batch is None:

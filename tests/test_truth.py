@@ -1,0 +1,100 @@
+"""The statistics of the accuracy-against-truth benchmark (skymodel.validation.truth):
+median and worst relative error with their Monte Carlo noise, the exclusion of the sun's
+disc and first 2 degrees of aureole, the view set, the path budget. No tracing here."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from skymodel.errors import SkymodelInputError
+from skymodel.render.rays import sun_direction
+from skymodel.validation.truth import (EXCLUDE_DEG, MEDIAN_NOISE_FACTOR, angle_to_sun_deg, paths_for_noise,
+                                       truth_statistics, view_directions, view_set)
+
+
+def test_statistics_of_known_errors():
+    mc = np.ones((5, 2))
+    marcher = mc * (1.0 + np.array([[0.01, -0.02], [-0.03, 0.0], [0.002, 0.004], [0.5, 0.5], [-0.004, 0.001]]))
+    se = np.full((5, 2), 0.002)
+    se[3] = 0.5  # the excluded direction must not count anywhere
+    angle = np.array([40.0, 90.0, 10.0, 1.0, 120.0])
+    st = truth_statistics(marcher, mc, se, angle)
+    assert np.all(st["n"] == 4)
+    np.testing.assert_allclose(st["median"], [np.median([0.01, 0.03, 0.002, 0.004]), np.median([0.02, 0, 0.004, 0.001])])
+    np.testing.assert_allclose(st["median_signed"], [np.median([0.01, -0.03, 0.002, -0.004]),
+                                                     np.median([-0.02, 0.0, 0.004, 0.001])])
+    np.testing.assert_allclose(st["worst"], [-0.03, -0.02])  # signed, the largest |rel|
+    np.testing.assert_array_equal(st["worst_index"], [1, 0])
+    np.testing.assert_allclose(st["worst_noise"], [0.002, 0.002])
+    np.testing.assert_allclose(st["median_noise"], MEDIAN_NOISE_FACTOR * 0.002 / 2.0)
+    np.testing.assert_allclose(st["noise_max"], 0.002)
+    np.testing.assert_allclose(st["mean_signed"], [np.mean([0.01, -0.03, 0.002, -0.004]),
+                                                   np.mean([-0.02, 0.0, 0.004, 0.001])])
+    np.testing.assert_allclose(st["mean_noise"], 0.002 / 2.0)
+
+
+def test_noise_is_relative_to_the_truth_and_falls_as_one_over_sqrt_n():
+    rng = np.random.default_rng(0)
+    mc = rng.uniform(0.5, 2.0, (64, 3))
+    se = 0.01 * mc
+    a = truth_statistics(mc, mc, se)
+    np.testing.assert_allclose(a["median"], 0.0)
+    np.testing.assert_allclose(a["median_noise"], MEDIAN_NOISE_FACTOR * 0.01 / 8.0)
+    b = truth_statistics(mc[:16], mc[:16], se[:16])
+    np.testing.assert_allclose(b["median_noise"], 2.0 * a["median_noise"])
+
+
+def test_median_noise_matches_the_spread_of_sample_medians():
+    """1.2533 sigma / sqrt(N) is what repeated noisy truths actually do to the median."""
+    rng = np.random.default_rng(1)
+    n, sigma = 31, 0.004
+    bias = rng.uniform(-0.01, 0.01, n)  # the marcher's own errors, fixed
+    meds = [np.median(bias + sigma * rng.standard_normal(n)) for _ in range(4000)]
+    st = truth_statistics(np.ones((n, 1)), np.ones((n, 1)), np.full((n, 1), sigma))
+    # the spread depends on the density of the biases at their median; for biases spread
+    # much wider than sigma the formula is an upper bound within a factor ~2
+    assert np.std(meds) < 2.0 * st["median_noise"][0]
+
+
+def test_exclusion_of_the_disc_and_aureole():
+    sun = sun_direction(20.0, 180.0)
+    d = np.stack([sun, view_directions([[70.0, 2.0]])[0], view_directions([[70.0, 10.0]])[0]])
+    ang = angle_to_sun_deg(d, sun)
+    assert ang[0] == pytest.approx(0.0, abs=1e-6)
+    assert ang[1] == pytest.approx(2.0 * np.sin(np.radians(70.0)), abs=0.01)  # ~1.88 deg, inside
+    mc = np.ones((3, 1))
+    marcher = np.array([[10.0], [2.0], [1.01]])
+    st = truth_statistics(marcher, mc, 0.001 * mc, ang)
+    assert st["n"][0] == 1 and st["worst"][0] == pytest.approx(0.01)
+    with pytest.raises(SkymodelInputError, match="angle_to_sun"):
+        truth_statistics(marcher[:2], mc[:2], mc[:2], ang[:2])
+
+
+@pytest.mark.parametrize("elev", [60.0, 20.0, 5.0, 0.0, -4.0])
+def test_view_set_is_sky_only_and_outside_the_excluded_cone(elev):
+    v = view_set(elev)
+    assert 20 <= len(v) <= 40
+    assert np.all((v[:, 0] >= 0.0) & (v[:, 0] <= 89.0))
+    assert len(np.unique(np.round(v, 3), axis=0)) == len(v)
+    ang = angle_to_sun_deg(view_directions(v), sun_direction(elev, 180.0))
+    assert np.all(ang > EXCLUDE_DEG)
+    assert np.any(ang < 12.0)  # the aureole beyond 2 degrees is measured
+    assert [0.0, 0.0] in v.tolist()
+
+
+def test_bad_inputs():
+    with pytest.raises(SkymodelInputError, match="mc"):
+        truth_statistics(np.ones((2, 1)), np.zeros((2, 1)), np.ones((2, 1)))
+    with pytest.raises(SkymodelInputError):
+        truth_statistics(np.ones((2, 1)), np.ones((3, 1)), np.ones((3, 1)))
+    with pytest.raises(SkymodelInputError, match="sun_elevation"):
+        view_set(95.0)
+    with pytest.raises(SkymodelInputError, match="target_rel"):
+        paths_for_noise(np.ones((2, 1)), 100, 0.0)
+
+
+def test_paths_for_noise():
+    rel = np.array([[0.02, 0.01], [0.005, 0.004], [0.1, 0.1]])
+    n = paths_for_noise(rel, 1000, 0.005, min_paths=2000, max_paths=50_000)
+    np.testing.assert_array_equal(n, [16000, 2000, 50000])
