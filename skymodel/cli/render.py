@@ -108,13 +108,14 @@ def cmd_render(args) -> int:
                              include_sun=not args.no_sun, progress=prog.order, max_memory_gib=limit_gib)
             radiance, info = img.radiance, img.info
     else:  # straight to CIE XYZ (the sky-view table for large images): no spectral cube
-        xyz, radiance = np.zeros(camera.shape + (3,)), None
+        # float32 (each band computed in float64): the EXR is float32, and the image half the memory
+        xyz, radiance = np.zeros(camera.shape + (3,), dtype=np.float32), None
         if sunlit:
             xyz, _, info = render_sky_reduced(profile, camera, sun.elevation_deg, xyz_reduction(wl), 3,
                                               sun.azimuth_deg, args.observer_altitude, settings,
                                               band_pixels=REDUCED_BAND_PIXELS, progress=prog.order,
                                               include_sun=not args.no_sun, solutions=None if night else False,
-                                              max_memory_gib=limit_gib)
+                                              max_memory_gib=limit_gib, dtype=np.float32)
     if not args.quiet:
         print(file=sys.stderr)
     if sunlit:
