@@ -16,7 +16,7 @@ the largest phase, not the sum:
   and :data:`SKYVIEW_TABLE_BYTES` more while the sky-view table is built;
 * ``image``: the float64 spectral cube ``H x W x n_wl``, :data:`IMAGE_COPIES` of them
   (single, multiple and ground parts, their sum, the image, the writers' conversions), or
-  three of them while the pixels near the sun are marched in bands, with the tables kept;
+  :data:`NEAR_SUN_CUBES` of them while the pixels near the sun are marched in bands, with the tables kept;
   :data:`TABLE_IMAGE_COPIES` when the image is resampled from the sky-view table
   (:mod:`skymodel.render.skyview`, images of ``TABLE_MIN_PIXELS`` pixels or more); a render
   reduced to colour keeps 3 values a pixel (``image_value_bytes`` each: float32 for
@@ -65,12 +65,19 @@ TRANSPORT_COPIES = 1.6
 #: before the marcher split its pieces over threads).
 BAND_COPIES = 20.0
 #: The sky-view table's build over the marching bands (its nodes: the grid and the sun's cap) [bytes]
-#: (measured: the colour render's preview 1024x512 peak over its 512x256 peak at 9fe0b71).
-SKYVIEW_TABLE_BYTES = 0.22 * GIB
+#: (measured: the colour render's preview 1024x512 peak over its 512x256 peak, 0.17-0.22 GiB at 9fe0b71;
+#: at final the table's renders peaked at 1.15-1.21 GiB against 1.15 for the marched 512x256: 0.15 splits them).
+SKYVIEW_TABLE_BYTES = 0.15 * GIB
 #: float64 spectral cubes (H x W x n_wl) alive at once, render and writers (measured).
 IMAGE_COPIES = 6.0
-#: ... when the image is resampled from the sky-view table (measured: 4.7 final, 4.8 preview at 1024x512).
-TABLE_IMAGE_COPIES = 5.0
+#: ... when the image is resampled from the sky-view table (measured: 3.6 final, 3.9 preview at 1024x512, --spectral,
+#: 1ea5f38; 4.7 and 4.8 before #23's speed work). Set on the high side, 4.5 (estimate / peak 1.14-1.18 there), so
+#: that the reliability issue's 2400x1200 at 10 nm preview --spectral (4.87 GiB measured then, not re-measured)
+#: is still refused at the default 4 GiB (estimate 4.06 GiB; tests/test_reliability.py).
+TABLE_IMAGE_COPIES = 4.5
+#: ... while the pixels near the sun are marched in bands, besides those bands (measured: the --spectral preview
+#: 512x256 peak, 0.59 GiB at 1ea5f38, is its marching bands'; 3 before #23's speed work).
+NEAR_SUN_CUBES = 1.0
 #: A render reduced to colour through the sky-view table (``image_channels`` fewer than the wavelengths): bytes a pixel
 #: besides its image (H x W x image_channels values): the mask, then the writers' images (the EXR's 12 bytes, the
 #: luminance's 8, the PNG's 3 and its rows' 3) (measured: 27 bytes a pixel with a float32 image, from the colour
@@ -185,7 +192,7 @@ def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=
     elif table:  # resampled from the sky-view table: no pixel is marched
         image = kept + TABLE_IMAGE_COPIES * cube
     else:
-        image = kept + max(IMAGE_COPIES * cube, 3 * cube + near_bands)
+        image = kept + max(IMAGE_COPIES * cube, NEAR_SUN_CUBES * cube + near_bands)
     if image_channels is not None and not table:
         # reduced to colour, marched directly: the spectra of one band's pixels near the sun (3 parts,
         # then their sum; the rest is interpolated from the grid's total, already reduced)
