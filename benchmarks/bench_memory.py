@@ -71,7 +71,9 @@ def main(argv=None) -> int:
     ap.add_argument("--write", action="store_true", help="write the table into docs/reliability.md")
     args = ap.parse_args(argv)
 
-    from skymodel.cli.render import REDUCED_BAND_PIXELS
+    import numpy as np
+
+    from skymodel.cli.render import REDUCED_BAND_PIXELS, REDUCED_DTYPE
     from skymodel.render.memory import GIB, estimate_render_memory
     from skymodel.wavelengths import default_wavelengths
 
@@ -86,7 +88,8 @@ def main(argv=None) -> int:
             # as skymodel render estimates it: the cube only with --spectral, else 3 values a pixel
             est = estimate_render_memory(w, h, wl.size, quality, wavelengths_nm=wl,
                                          image_channels=None if args.spectral else 3,
-                                         band_pixels=None if args.spectral else REDUCED_BAND_PIXELS)
+                                         band_pixels=None if args.spectral else REDUCED_BAND_PIXELS,
+                                         image_value_bytes=8 if args.spectral else np.dtype(REDUCED_DTYPE).itemsize)
             peak, secs = measure(quality, w, h, args.step, folder, args.spectral, args.camera)
             ratio = est.total / peak
             ratios.append(ratio)

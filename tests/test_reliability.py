@@ -339,21 +339,25 @@ def test_memory_table_in_the_docs_is_the_current_estimate():
     import os
     import re
 
-    from skymodel.cli.render import REDUCED_BAND_PIXELS
+    import numpy as np
+
+    from skymodel.cli.render import REDUCED_BAND_PIXELS, REDUCED_DTYPE
     from skymodel.render.memory import estimate_render_memory
     from skymodel.wavelengths import default_wavelengths
 
     text = open(os.path.join(os.path.dirname(__file__), "..", "docs", "reliability.md"), encoding="utf-8").read()
     row = re.compile(r"^\| (\w+) \| (\d+)x(\d+) \| (\d+) \| ([\d.]+) \(.*?\) \| ([\d.]+) \| ([\d.]+) \|", re.M)
     n = 0
-    for heading, channels, band in (("## Memory guard: estimate against the measured peak", 3, REDUCED_BAND_PIXELS),
-                                    ("## Memory guard: renders that keep the spectral cube", None, None)):
+    colour_bytes = np.dtype(REDUCED_DTYPE).itemsize  # the colour render keeps a float32 image
+    for heading, channels, band, value_bytes in (
+            ("## Memory guard: estimate against the measured peak", 3, REDUCED_BAND_PIXELS, colour_bytes),
+            ("## Memory guard: renders that keep the spectral cube", None, None, 8)):
         start = text.index(heading)
         end = text.find("\n## ", start + 1)
         for quality, w, h, n_wl, est_gib, peak_gib, _ in row.findall(text[start:end if end > 0 else None]):
             wl = default_wavelengths(400.0 / (int(n_wl) - 1))
             est = estimate_render_memory(int(w), int(h), int(n_wl), quality, wavelengths_nm=wl,
-                                         image_channels=channels, band_pixels=band)
+                                         image_channels=channels, band_pixels=band, image_value_bytes=value_bytes)
             assert abs(est.gib - float(est_gib)) <= 0.006, (heading, quality, w, h, est.gib, est_gib)
             assert 0.75 <= est.gib / float(peak_gib) <= 1.25, (heading, quality, w, h)
             n += 1

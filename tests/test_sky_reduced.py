@@ -95,3 +95,20 @@ def test_sun_disc_found_by_bands_of_rows_is_the_whole_images(name, sun_el, sun_a
     mask_b, spectra_b = _sun_disc_of_camera(cam, s, irr, wl, rows=7)
     np.testing.assert_array_equal(mask_b, mask)
     np.testing.assert_array_equal(spectra_b, spectra)
+
+
+def test_float32_image_is_the_float64_one_rounded(case):
+    """``dtype=np.float32`` (the CLI's colour path) stores each band, computed in float64, as float32."""
+    from skymodel.errors import SkymodelInputError
+    from skymodel.render.skyview import xyz_reduction
+
+    prof, cam, _ = case
+    reduce = xyz_reduction(prof.wavelengths_nm)
+    x64, _, _ = render_sky_reduced(prof, cam, 20.0, reduce, 3, 150.0, quality="preview", band_pixels=37,
+                                   include_sun=True)
+    x32, _, _ = render_sky_reduced(prof, cam, 20.0, reduce, 3, 150.0, quality="preview", band_pixels=37,
+                                   include_sun=True, dtype=np.float32)
+    assert x64.dtype == np.float64 and x32.dtype == np.float32
+    np.testing.assert_array_equal(x32, x64.astype(np.float32))
+    with pytest.raises(SkymodelInputError, match="dtype"):
+        render_sky_reduced(prof, cam, 20.0, reduce, 3, quality="preview", dtype=np.int32)

@@ -15,6 +15,8 @@ from skymodel.errors import SkymodelInputError
 
 #: Pixels whose spectra the colour render holds at once (render_sky_reduced's band).
 REDUCED_BAND_PIXELS = 1 << 20
+#: ... and the dtype of the colour image it keeps (each band computed in float64; the EXR is float32).
+REDUCED_DTYPE = "float32"
 
 
 def add_command(sub) -> None:
@@ -88,7 +90,8 @@ def cmd_render(args) -> int:
     kept = wl.size if args.spectral else 3
     camera = make_camera(args.camera, width, height, n_wavelengths=kept, max_memory_bytes=limit_gib * 1024**3)
     check_render_memory(camera.width, camera.height, wl.size, settings, limit_gib, wavelengths_nm=wl,
-                        image_channels=kept, band_pixels=None if args.spectral else REDUCED_BAND_PIXELS)
+                        image_channels=kept, band_pixels=None if args.spectral else REDUCED_BAND_PIXELS,
+                        image_value_bytes=8 if args.spectral else np.dtype(REDUCED_DTYPE).itemsize)
     png = None if args.no_png else (args.png or (str(args.out).rsplit(".", 1)[0] + ".png"))
     # validate every output path before the (long) render, so nothing is half-written
     for key, path, ext in (("out", args.out, ".exr"), ("png", png, ".png"), ("spectral", args.spectral, ".npz")):
@@ -108,13 +111,14 @@ def cmd_render(args) -> int:
                              include_sun=not args.no_sun, progress=prog.order, max_memory_gib=limit_gib)
             radiance, info = img.radiance, img.info
     else:  # straight to CIE XYZ (the sky-view table for large images): no spectral cube
-        xyz, radiance = np.zeros(camera.shape + (3,)), None
+        # float32 (each band computed in float64): the EXR is float32, and the image half the memory
+        xyz, radiance = np.zeros(camera.shape + (3,), dtype=REDUCED_DTYPE), None
         if sunlit:
             xyz, _, info = render_sky_reduced(profile, camera, sun.elevation_deg, xyz_reduction(wl), 3,
                                               sun.azimuth_deg, args.observer_altitude, settings,
                                               band_pixels=REDUCED_BAND_PIXELS, progress=prog.order,
                                               include_sun=not args.no_sun, solutions=None if night else False,
-                                              max_memory_gib=limit_gib)
+                                              max_memory_gib=limit_gib, dtype=REDUCED_DTYPE)
     if not args.quiet:
         print(file=sys.stderr)
     if sunlit:

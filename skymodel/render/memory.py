@@ -12,16 +12,19 @@ the largest phase, not the sum:
   solver wavelengths);
 * ``bands``: marching one band of directions, ``min(chunk, MARCH_PIECE, directions) x
   view_steps x n_wl`` float64 values, :data:`BAND_COPIES` of them alive at once over the
-  marcher's threads (:meth:`skymodel.render.marcher.SkyMarcher._exact`), with the tables kept;
+  marcher's threads (:meth:`skymodel.render.marcher.SkyMarcher._exact`), with the tables kept,
+  and :data:`SKYVIEW_TABLE_BYTES` more while the sky-view table is built;
 * ``image``: the float64 spectral cube ``H x W x n_wl``, :data:`IMAGE_COPIES` of them
   (single, multiple and ground parts, their sum, the image, the writers' conversions), or
-  three of them while the pixels near the sun are marched in bands, with the tables kept;
+  :data:`NEAR_SUN_CUBES` of them while the pixels near the sun are marched in bands, with the tables kept;
   :data:`TABLE_IMAGE_COPIES` when the image is resampled from the sky-view table
   (:mod:`skymodel.render.skyview`, images of ``TABLE_MIN_PIXELS`` pixels or more); a render
-  reduced to colour keeps 3 values a pixel plus the spectra of the band it marches, or,
-  through the table, its image, :data:`REDUCED_TABLE_PIXEL_BYTES` a pixel (directions,
-  indices, mask) and :data:`REDUCED_TABLE_BAND_BYTES` a pixel of the band it looks up (the
-  writers work by bands of rows, :func:`skymodel.render.image_io.save_outputs`, and need less).
+  reduced to colour keeps 3 values a pixel (``image_value_bytes`` each: float32 for
+  ``skymodel render``) plus the spectra of the band's pixels near the sun it marches, or,
+  through the table, its image, :data:`REDUCED_TABLE_PIXEL_BYTES` a pixel (the mask, then
+  the writers' own images, :func:`skymodel.render.image_io.save_outputs`: the EXR's float32
+  pixels, the float64 luminance, the 8-bit PNG) and :data:`REDUCED_TABLE_BAND_BYTES` a pixel
+  of the band it looks up.
 
 The constants were measured, not derived (peak of each phase with ``tracemalloc`` for
 the preview and final presets, then the whole render's peak resident memory):
@@ -57,21 +60,32 @@ SOLVE_BYTES = 0.39 * GIB
 #: float64 transport matrices ((table_altitudes x table_mu)^2 x solver wavelengths) alive at once (measured).
 TRANSPORT_COPIES = 1.6
 #: float64 arrays per marched direction (view_steps x n_wl) alive at once, over the marcher's
-#: threads, for min(chunk, MARCH_PIECE) directions in flight (measured: 26 preview and final,
-#: since the marcher splits its pieces over threads; 15-16.5 before, with 2048 directions in one piece).
-BAND_COPIES = 26.0
+#: threads, for min(chunk, MARCH_PIECE) directions in flight (measured: 20 from the colour render's
+#: preview 128x64 and 512x256 peaks at 9fe0b71, 0.60 GiB; 26 before the speed work of #23, 15-16.5
+#: before the marcher split its pieces over threads).
+BAND_COPIES = 20.0
+#: The sky-view table's build over the marching bands (its nodes: the grid and the sun's cap) [bytes]
+#: (measured: the colour render's preview 1024x512 peak over its 512x256 peak, 0.17-0.22 GiB at 9fe0b71;
+#: at final the table's renders peaked at 1.15-1.21 GiB against 1.15 for the marched 512x256: 0.15 splits them).
+SKYVIEW_TABLE_BYTES = 0.15 * GIB
 #: float64 spectral cubes (H x W x n_wl) alive at once, render and writers (measured).
 IMAGE_COPIES = 6.0
-#: ... when the image is resampled from the sky-view table (measured: 4.7 final, 4.8 preview at 1024x512).
-TABLE_IMAGE_COPIES = 5.0
+#: ... when the image is resampled from the sky-view table (measured: 3.6 final, 3.9 preview at 1024x512, --spectral,
+#: 1ea5f38; 4.7 and 4.8 before #23's speed work). Set on the high side, 4.5 (estimate / peak 1.14-1.18 there), so
+#: that the reliability issue's 2400x1200 at 10 nm preview --spectral (4.87 GiB measured then, not re-measured)
+#: is still refused at the default 4 GiB (estimate 4.06 GiB; tests/test_reliability.py).
+TABLE_IMAGE_COPIES = 4.5
+#: ... while the pixels near the sun are marched in bands, besides those bands (measured: the --spectral preview
+#: 512x256 peak, 0.59 GiB at 1ea5f38, is its marching bands'; 3 before #23's speed work).
+NEAR_SUN_CUBES = 1.0
 #: A render reduced to colour through the sky-view table (``image_channels`` fewer than the wavelengths): bytes a pixel
-#: besides its image (H x W x image_channels float64) while it is looked up: the directions (3 float64),
-#: the indices of the valid pixels (int64) and the mask (bool) (measured: 57 bytes a pixel with 3 channels
-#: from the peaks of preview 4096x2048 and 8192x4096, equirectangular).
-REDUCED_TABLE_PIXEL_BYTES = 33.0
-#: ... and bytes per pixel of the band being looked up (``band_pixels``; the lookup's and the
-#: colour finish's temporaries; measured: 0.74 GiB for a band of 2^20 pixels, preview 4096x2048).
-REDUCED_TABLE_BAND_BYTES = 755.0
+#: besides its image (H x W x image_channels values): the mask, then the writers' images (the EXR's 12 bytes, the
+#: luminance's 8, the PNG's 3 and its rows' 3) (measured: 27 bytes a pixel with a float32 image, from the colour
+#: render's peaks at preview 4096x2048 and 8192x4096, equirectangular, 9fe0b71: 0.76 and 1.68 GiB).
+REDUCED_TABLE_PIXEL_BYTES = 27.0
+#: ... and bytes per pixel of the band being looked up (``band_pixels``; its directions, the lookup's and the
+#: colour finish's temporaries; measured: 0.35 GiB for a band of 2^20 pixels, the same two peaks).
+REDUCED_TABLE_BAND_BYTES = 355.0
 #: The tables kept through the march, in float64 transport matrices (the float32 copy, the field, the
 #: allocator's unreturned pages; measured: the final preset's image phase over the preview's).
 KEPT_TABLES = 1.0
@@ -133,7 +147,8 @@ def _table_min_pixels() -> int:
 
 def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=None, *, wavelengths_nm=None,
                            n_pixels: int | None = None, image_channels: int | None = None,
-                           band_pixels: int | None = None, sky_view_table: bool | None = None) -> MemoryEstimate:
+                           band_pixels: int | None = None, sky_view_table: bool | None = None,
+                           image_value_bytes: int = 8) -> MemoryEstimate:
     """Estimated peak resident memory of rendering ``width x height`` pixels at
     ``n_wavelengths`` wavelengths with ``quality`` (a preset name, a MarchSettings, or
     None for the default quality); ``wavelengths_nm`` (optional) gives the solver's
@@ -143,7 +158,9 @@ def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=
     hold the spectra of ``band_pixels`` of them at once, default all; images of at least
     ``skymodel.render.skyview.TABLE_MIN_PIXELS`` pixels go through the sky-view table;
     ``sky_view_table=False``: every pixel is marched whatever the size, as a render with
-    ``method="direct"`` does; None: by the size)."""
+    ``method="direct"`` does; None: by the size); ``image_value_bytes``: bytes of one value
+    of the kept image (8: float64; 4: the float32 image of ``render_sky_reduced(dtype=np.float32)``,
+    as ``skymodel render`` keeps its colour image)."""
     from skymodel.render.quality import quality_settings
 
     s = quality_settings(quality)
@@ -158,24 +175,28 @@ def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=
     per_direction = s.view_steps * n_wl * 8.0  # one float64 band array per marched direction
     marched = max(min(s.chunk, _march_piece(), max(pixels if s.exact else grid_dirs, 1)), 1)
     bands = kept + BAND_COPIES * marched * per_direction
-    cube = w * h * (n_wl if image_channels is None else int(image_channels)) * 8.0
+    table = not s.exact and pixels >= _table_min_pixels() and sky_view_table is not False
+    if table:  # the sky-view table's build: its nodes marched (the grid, the sun's cap) and their totals
+        bands += SKYVIEW_TABLE_BYTES
+    cube = w * h * (n_wl if image_channels is None else int(image_channels)) * float(image_value_bytes)
     # with a direction grid the pixels near the sun are still marched, in bands, while the
     # three parts of the cube are held (a hemisphere camera: up to 1 - cos(sun_exact) of them)
     near = pixels if s.exact else math.ceil(pixels * (1.0 - math.cos(math.radians(s.sun_exact_deg))))
     near_bands = BAND_COPIES * min(s.chunk, _march_piece(), near) * per_direction
-    table = not s.exact and pixels >= _table_min_pixels() and sky_view_table is not False
     if table and image_channels is not None and int(image_channels) < n_wl:
-        # reduced (to colour) through the table: the image, the directions and indices, one band's lookup
-        # (the writers then work by bands of rows and need less: image_io.save_outputs)
+        # reduced (to colour) through the table: the image, then the larger of one band's lookup and
+        # the writers' own images (image_io.save_outputs: the EXR's float32 pixels, the float64
+        # luminance, the 8-bit PNG and its rows), both per pixel of the image
         looked_up = min(pixels, pixels if band_pixels is None else max(int(band_pixels), 1))
         image = kept + cube + REDUCED_TABLE_PIXEL_BYTES * w * h + REDUCED_TABLE_BAND_BYTES * looked_up
     elif table:  # resampled from the sky-view table: no pixel is marched
         image = kept + TABLE_IMAGE_COPIES * cube
     else:
-        image = kept + max(IMAGE_COPIES * cube, 3 * cube + near_bands)
+        image = kept + max(IMAGE_COPIES * cube, NEAR_SUN_CUBES * cube + near_bands)
     if image_channels is not None and not table:
-        # reduced to colour, marched directly: the spectra of one band (3 parts, then their sum)
-        band = min(pixels, pixels if band_pixels is None else int(band_pixels)) * n_wl * 8.0
+        # reduced to colour, marched directly: the spectra of one band's pixels near the sun (3 parts,
+        # then their sum; the rest is interpolated from the grid's total, already reduced)
+        band = min(near, pixels if band_pixels is None else int(band_pixels)) * n_wl * 8.0
         image = kept + IMAGE_COPIES * cube + max(4 * band, 3 * band + near_bands)
     return MemoryEstimate(int(BASE_BYTES), int(tables), int(bands), int(image))
 
@@ -189,13 +210,14 @@ def limit_bytes(max_memory_gib=None) -> float:
 
 def check_render_memory(width: int, height: int, n_wavelengths: int, quality=None, max_memory_gib=None, *,
                         wavelengths_nm=None, image_channels: int | None = None,
-                        band_pixels: int | None = None, sky_view_table: bool | None = None) -> MemoryEstimate:
+                        band_pixels: int | None = None, sky_view_table: bool | None = None,
+                        image_value_bytes: int = 8) -> MemoryEstimate:
     """The estimate (:func:`estimate_render_memory`), or :class:`SkymodelInputError`
     naming ``max_memory`` when it exceeds ``max_memory_gib`` [GiB] (None: the default)."""
     limit = limit_bytes(max_memory_gib)
     est = estimate_render_memory(width, height, n_wavelengths, quality, wavelengths_nm=wavelengths_nm,
                                  image_channels=image_channels, band_pixels=band_pixels,
-                                 sky_view_table=sky_view_table)
+                                 sky_view_table=sky_view_table, image_value_bytes=image_value_bytes)
     if est.total > limit:
         gib = limit / GIB
         raise SkymodelInputError(

@@ -150,7 +150,7 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
 def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce, n_channels: int,
                        sun_azimuth_deg: float = 180.0, observer_altitude_m: float = 0.0, quality=None,
                        band_pixels: int = 65536, progress=None, solution=None, method: str = "auto",
-                       include_sun: bool = False, solutions=None, max_memory_gib=None):
+                       include_sun: bool = False, solutions=None, max_memory_gib=None, dtype=np.float64):
     """Render ``camera`` without ever holding the whole spectral cube: each band of about
     ``band_pixels`` pixels is reduced to ``n_channels`` values at once, so memory grows with
     the image as ``n_channels`` values per pixel, not ``n_wl``.
@@ -166,6 +166,8 @@ def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce
     :func:`render_sky`. ``max_memory_gib`` [GiB]: as in :func:`render_sky`, the limit of the
     same estimate (:func:`skymodel.render.memory.check_render_memory`, ``n_channels`` values
     a pixel, the spectra of ``band_pixels`` marched pixels), checked before any work.
+    ``dtype``: the returned image's (each band is computed in float64 and stored in it;
+    ``np.float32`` halves the image, e.g. for the CLI's colour output, whose EXR is float32).
 
     Returns ``(image (H, W, n_channels), sun_irradiance (n_wl,), info)``; invalid pixels are 0.
     """
@@ -175,11 +177,16 @@ def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce
                                       quality)
     sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings = settings
     method = _check_method(method)
+    if np.dtype(dtype) not in (np.dtype(np.float32), np.dtype(np.float64)):
+        from skymodel.errors import SkymodelInputError
+
+        raise SkymodelInputError("dtype", dtype, "numpy.float32 or numpy.float64")
     from skymodel.render.memory import check_render_memory
 
     check_render_memory(camera.width, camera.height, profile.wavelengths_nm.size, settings, max_memory_gib,
                         wavelengths_nm=profile.wavelengths_nm, image_channels=n_channels, band_pixels=band_pixels,
-                        sky_view_table=None if isinstance(reduce, Reduction) and method != "direct" else False)
+                        sky_view_table=None if isinstance(reduce, Reduction) and method != "direct" else False,
+                        image_value_bytes=np.dtype(dtype).itemsize)
     t0 = time.perf_counter()
     solution = _solution(profile, settings, solution, solutions, progress)
     marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
@@ -191,12 +198,12 @@ def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce
     if isinstance(reduce, Reduction):
         # directions by bands of rows (the camera's): a panorama's are never all held at once
         out, info, bands = _pixels(marcher, camera, camera.valid_mask(), reduce, n_channels, band_pixels, method,
-                                   disc)
+                                   disc, dtype=dtype)
     else:
         dirs, valid = camera.directions()
         if disc is not None:
             raise ValueError("include_sun needs a Reduction (the disc is added before the finish)")
-        out, info, bands = _march_pixels(marcher, dirs, valid, reduce, n_channels, band_pixels)
+        out, info, bands = _march_pixels(marcher, dirs, valid, reduce, n_channels, band_pixels, dtype=dtype)
         info["method"] = "direct"
     info["total_s"] = time.perf_counter() - t0
     info["bands"] = bands
@@ -307,7 +314,8 @@ def _use_table(marcher, valid, method: str) -> bool:
     return method == "table" or int(valid.sum()) >= TABLE_MIN_PIXELS
 
 
-def _pixels(marcher, dirs, valid, reduction, n_channels: int, band_pixels, method: str, disc=None):
+def _pixels(marcher, dirs, valid, reduction, n_channels: int, band_pixels, method: str, disc=None,
+            dtype=np.float64):
     """The valid pixels of a camera through the sky-view table (:mod:`skymodel.render.skyview`)
     or marched directly (:meth:`~skymodel.render.marcher.SkyMarcher.total_radiance`), as
     ``method`` says (:func:`_use_table`). ``dirs``: the pixels' directions (H, W, 3), or the
@@ -315,13 +323,14 @@ def _pixels(marcher, dirs, valid, reduction, n_channels: int, band_pixels, metho
     (``directions_rows``), so every pixel's direction is never held at once. A band is
     ``band_pixels`` valid pixels in row-major order (None: all). ``reduction``: a
     :class:`~skymodel.render.skyview.Reduction` or None (spectra); ``disc``: ``(mask,
-    spectra)`` of the solar disc, added before the reduction's finish.
+    spectra)`` of the solar disc, added before the reduction's finish. ``dtype``: the
+    image's (each band is computed in float64).
     Returns ``(image (H, W, n_channels), info, number of bands)``."""
     from skymodel.render.skyview import Reduction, SkyViewTable
 
     red = reduction if reduction is not None else Reduction(None, int(n_channels))
     h, w = valid.shape
-    out = np.zeros((h * w, int(n_channels)))
+    out = np.zeros((h * w, int(n_channels)), dtype=dtype)
     per_row = valid.sum(axis=1)
     before = np.concatenate([[0], np.cumsum(per_row)])  # valid pixels before each row
     total = int(before[-1])
@@ -361,13 +370,13 @@ def _pixels(marcher, dirs, valid, reduction, n_channels: int, band_pixels, metho
     return out.reshape(h, w, int(n_channels)), info, bands
 
 
-def _march_pixels(marcher, dirs, valid, reduce, n_channels: int, band_pixels):
+def _march_pixels(marcher, dirs, valid, reduce, n_channels: int, band_pixels, dtype=np.float64):
     """March the valid pixels of a camera: ``(image (H, W, n_channels), the marcher's info,
     number of bands)``. ``reduce(radiance (n, n_wl), wavelengths_nm) -> (n, n_channels)`` is
     applied to each band of at most ``band_pixels`` pixels (None: keep the spectra; all
-    pixels in one band); invalid pixels are 0."""
+    pixels in one band); invalid pixels are 0; the image in ``dtype``."""
     h, w = valid.shape
-    out = np.zeros((h * w, int(n_channels)))
+    out = np.zeros((h * w, int(n_channels)), dtype=dtype)
     flat = dirs.reshape(-1, 3)
     sel = np.nonzero(valid.ravel())[0]
     band = sel.size if band_pixels is None else max(1, int(band_pixels))
