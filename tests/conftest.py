@@ -46,6 +46,60 @@ def new_sky_scene(addon):
     return make
 
 
+@pytest.fixture
+def small_preview(monkeypatch):
+    """The ``preview`` preset with small tables, for the duration of a test: builds in seconds
+    (what those tests check does not depend on the tables' size)."""
+    from dataclasses import replace
+
+    from skymodel.render.quality import QUALITIES
+
+    q = QUALITIES["preview"]
+    small = replace(q.settings, table_altitudes=10, table_mu=12, table_phi=6, table_mus=10, table_steps=16,
+                    sun_table_altitudes=24, sun_table_x=32, sun_table_steps=32, grid_zenith=16,
+                    grid_zenith_ground=6, grid_azimuth=9, max_orders=4)
+    monkeypatch.setitem(QUALITIES, "preview", replace(q, settings=small))
+
+
+class RecordingLayout:
+    """Stands in for a UI layout: records every property and label the panel draws, and
+    checks each drawn property exists on its data."""
+
+    def __init__(self, log):
+        self.log = log
+        self.use_property_split = self.use_property_decorate = False
+        self.active = self.enabled = True
+        self.scale_y = 1.0
+
+    def _child(self, *args, **kwargs):
+        return RecordingLayout(self.log)
+
+    column = row = box = split = _child
+
+    def prop(self, data, name, **kwargs):
+        assert hasattr(data, name), name
+        self.log.append(("prop", name))
+
+    def label(self, text="", **kwargs):
+        self.log.append(("label", text))
+
+    def operator(self, idname, **kwargs):
+        self.log.append(("operator", idname))
+        return type("Props", (), {})()
+
+    def template_ID(self, *args, **kwargs):
+        self.log.append(("template", args[1] if len(args) > 1 else ""))
+
+    def separator(self, *args, **kwargs):
+        pass
+
+
+@pytest.fixture
+def recording_layout():
+    """The class of :class:`RecordingLayout` (panels cannot be drawn without a window)."""
+    return RecordingLayout
+
+
 # ---------------------------------------------------------------------------- no module skipped whole
 # CI (.ci/run) sets SKYMODEL_NO_SKIPPED_MODULES=1: every optional dependency is installed there
 # (the test, blender, plots and oracles extras), so a test module whose tests were all skipped,

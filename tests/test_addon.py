@@ -507,47 +507,14 @@ def test_headless_render_module(tmp_path, addon):
     assert headless.main(["--sun-elevation", "-30", "--size", "32x16", "--out", str(tmp_path / "y.png")]) == 2
 
 
-class _RecordingLayout:
-    """Stands in for a UI layout: records every property and label the panel draws, and
-    checks each drawn property exists on its data."""
-
-    def __init__(self, log):
-        self.log = log
-        self.use_property_split = self.use_property_decorate = False
-        self.active = self.enabled = True
-        self.scale_y = 1.0
-
-    def _child(self, *args, **kwargs):
-        return _RecordingLayout(self.log)
-
-    column = row = box = split = _child
-
-    def prop(self, data, name, **kwargs):
-        assert hasattr(data, name), name
-        self.log.append(("prop", name))
-
-    def label(self, text="", **kwargs):
-        self.log.append(("label", text))
-
-    def operator(self, idname, **kwargs):
-        self.log.append(("operator", idname))
-        return type("Props", (), {})()
-
-    def template_ID(self, *args, **kwargs):
-        self.log.append(("template", args[1] if len(args) > 1 else ""))
-
-    def separator(self, *args, **kwargs):
-        pass
-
-
 @pytest.mark.parametrize("mode", ["AUTO", "ENVIRONMENT", "VOLUMETRIC"])
-def test_panel_draws_every_mode(scene, mode):
+def test_panel_draws_every_mode(scene, mode, recording_layout):
     from blender_addon import ui
 
     s = settings(scene)
     s.mode = mode
     log = []
-    ui.draw_settings(_RecordingLayout(log), bpy.context)
+    ui.draw_settings(recording_layout(log), bpy.context)
     props = {n for kind, n in log if kind == "prop"}
     assert {"mode", "quality", "location"} <= props
     assert ("n_layers" in props) == (mode == "VOLUMETRIC")

@@ -23,19 +23,6 @@ ZARAGOZA = (41.65, -0.88)
 
 
 @pytest.fixture
-def small_preview(monkeypatch):
-    from dataclasses import replace
-
-    from skymodel.render.quality import QUALITIES
-
-    q = QUALITIES["preview"]
-    small = replace(q.settings, table_altitudes=10, table_mu=12, table_phi=6, table_mus=10, table_steps=16,
-                    sun_table_altitudes=24, sun_table_x=32, sun_table_steps=32, grid_zenith=16,
-                    grid_zenith_ground=6, grid_azimuth=9, max_orders=4)
-    monkeypatch.setitem(QUALITIES, "preview", replace(q, settings=small))
-
-
-@pytest.fixture
 def day(new_sky_scene, small_preview, monkeypatch, tmp_path):
     """Zaragoza, 2026-06-21, 20:00 .. 21:30 CEST every 45 min keyframed (3 frames)."""
     from blender_addon import animation

@@ -29,19 +29,6 @@ class FakeClock:
 
 
 @pytest.fixture
-def small_preview(monkeypatch):
-    from dataclasses import replace
-
-    from skymodel.render.quality import QUALITIES
-
-    q = QUALITIES["preview"]
-    small = replace(q.settings, table_altitudes=10, table_mu=12, table_phi=6, table_mus=10, table_steps=16,
-                    sun_table_altitudes=24, sun_table_x=32, sun_table_steps=32, grid_zenith=16,
-                    grid_zenith_ground=6, grid_azimuth=9, max_orders=4)
-    monkeypatch.setitem(QUALITIES, "preview", replace(q, settings=small))
-
-
-@pytest.fixture
 def live_scene(new_sky_scene, small_preview, monkeypatch, tmp_path):
     """A scene whose panel asks for preview quality at 32 px, with the live preview at 16 px."""
     from blender_addon import live

@@ -17,19 +17,6 @@ pytestmark = pytest.mark.blender
 
 
 @pytest.fixture
-def small_preview(monkeypatch):
-    from dataclasses import replace
-
-    from skymodel.render.quality import QUALITIES
-
-    q = QUALITIES["preview"]
-    small = replace(q.settings, table_altitudes=10, table_mu=12, table_phi=6, table_mus=10, table_steps=16,
-                    sun_table_altitudes=24, sun_table_x=32, sun_table_steps=32, grid_zenith=16,
-                    grid_zenith_ground=6, grid_azimuth=9, max_orders=4)
-    monkeypatch.setitem(QUALITIES, "preview", replace(q, settings=small))
-
-
-@pytest.fixture
 def dated(new_sky_scene, small_preview, monkeypatch, tmp_path):
     monkeypatch.setenv("SKYMODEL_CACHE_DIR", str(tmp_path / "cache"))
     sc = new_sky_scene(image_width=32, location="zaragoza")
@@ -206,39 +193,7 @@ def test_sun_path_is_kept_when_only_the_hour_changes(dated):
     s.show_sun_path = False
 
 
-class _Layout:
-    """A stand-in UI layout recording what the panel draws (each property must exist)."""
-
-    def __init__(self, log):
-        self.log = log
-        self.use_property_split = self.use_property_decorate = False
-        self.active = self.enabled = True
-        self.scale_y = 1.0
-
-    def _child(self, *args, **kwargs):
-        return _Layout(self.log)
-
-    column = row = box = split = _child
-
-    def prop(self, data, name, **kwargs):
-        assert hasattr(data, name), name
-        self.log.append(("prop", name))
-
-    def label(self, text="", **kwargs):
-        self.log.append(("label", text))
-
-    def operator(self, idname, **kwargs):
-        self.log.append(("operator", idname))
-        return type("Props", (), {})()
-
-    def template_ID(self, *args, **kwargs):
-        pass
-
-    def separator(self, *args, **kwargs):
-        pass
-
-
-def test_panel_draws_the_zone_moon_sun_path_and_live_rows(dated, monkeypatch):
+def test_panel_draws_the_zone_moon_sun_path_and_live_rows(dated, monkeypatch, recording_layout):
     from blender_addon import live, ui
 
     sc, s = dated
@@ -247,13 +202,13 @@ def test_panel_draws_the_zone_moon_sun_path_and_live_rows(dated, monkeypatch):
     live.stop()
     monkeypatch.setattr(live.STATE, "error", "timezone='x' is not allowed")
     log = []
-    ui.draw_settings(_Layout(log), bpy.context)
+    ui.draw_settings(recording_layout(log), bpy.context)
     props = {n for kind, n in log if kind == "prop"}
     assert {"timezone", "moon_lamp", "show_sun_path", "sun_path_radius", "live_update"} <= props
     assert ("label", "Live: timezone='x' is not allowed") in log
     s.mode = "VOLUMETRIC"
     log.clear()
-    ui.draw_settings(_Layout(log), bpy.context)
+    ui.draw_settings(recording_layout(log), bpy.context)
     assert any(kind == "label" and text.startswith("Live: Live Update works in Environment mode") for kind, text in log)
     s.live_update = False
     s.show_sun_path = False

@@ -25,21 +25,13 @@ WL = default_wavelengths(50.0)
 
 
 @pytest.fixture(autouse=True)
-def small_preview(monkeypatch, request):
-    """The preview preset with small tables (the night's arithmetic does not depend on their size),
-    except for the tests marked ``full_preview`` (deep twilight needs the preset's own tables: with
-    10 sun-elevation nodes the sunlit sky at -14..-18 is not even monotonic)."""
-    if request.node.get_closest_marker("full_preview"):
-        return
-    from dataclasses import replace
-
-    from skymodel.render.quality import QUALITIES
-
-    q = QUALITIES["preview"]
-    small = replace(q.settings, table_altitudes=10, table_mu=12, table_phi=6, table_mus=10, table_steps=16,
-                    sun_table_altitudes=24, sun_table_x=32, sun_table_steps=32, grid_zenith=16,
-                    grid_zenith_ground=6, grid_azimuth=9, max_orders=4)
-    monkeypatch.setitem(QUALITIES, "preview", replace(q, settings=small))
+def small_preview_unless_marked(request):
+    """The preview preset with small tables (conftest's ``small_preview``: the night's arithmetic
+    does not depend on their size), except for the tests marked ``full_preview`` (deep twilight
+    needs the preset's own tables: with 10 sun-elevation nodes the sunlit sky at -14..-18 is not
+    even monotonic)."""
+    if not request.node.get_closest_marker("full_preview"):
+        request.getfixturevalue("small_preview")
 
 
 @pytest.fixture(scope="module")

@@ -133,34 +133,12 @@ def test_no_camera_plans_for_a_viewer_that_may_look_anywhere(scene):
     assert len(d.cameras) == 1 and d.elevation_range_deg == (-90.0, 90.0)
 
 
-class _Layout:
-    """Stands in for a Blender UI layout (panels cannot be drawn without a window):
-    records labels and property rows."""
-
-    def __init__(self, log):
-        self.log = log
-        self.scale_y = 1.0
-        self.active = True
-
-    def column(self, align=False):
-        return _Layout(self.log)
-
-    row = box = column
-
-    def label(self, text="", icon="NONE"):
-        self.log.append(("label", text))
-
-    def prop(self, data, name, text=None, **kw):
-        assert hasattr(data, name), name
-        self.log.append(("prop", name))
-
-
-def test_panel_lists_the_plan_with_reasons_and_overrides(scene):
+def test_panel_lists_the_plan_with_reasons_and_overrides(scene, recording_layout):
     from blender_addon import scene_description, ui
 
     add_cube(scene, "Near", (0.0, 100.0, 1.0))
     log = []
-    ui.draw_plan(_Layout(log), bpy.context, scene.world.skymodel)
+    ui.draw_plan(recording_layout(log), bpy.context, scene.world.skymodel)
     labels = [t for k, t in log if k == "label"]
     props = {t for k, t in log if k == "prop"}
     plan = scene_description.make_plan(scene, scene.world.skymodel)
@@ -171,7 +149,7 @@ def test_panel_lists_the_plan_with_reasons_and_overrides(scene):
     # bad input: the panel says why instead of failing
     scene.world.skymodel.location = "atlantis"
     log.clear()
-    ui.draw_plan(_Layout(log), bpy.context, scene.world.skymodel)
+    ui.draw_plan(recording_layout(log), bpy.context, scene.world.skymodel)
     assert any("No plan" in t and "location" in t for k, t in log if k == "label")
 
 
