@@ -551,9 +551,10 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
             solutions = solution_cache(folder)
         t_solve = time.perf_counter()
         solution = None
-        if sunlit or night_module.moonlit(night_module.moon_lamp(prof, atmosphere.latitude, atmosphere.longitude,
-                                                                 time_iso, observer_altitude_m).elevation_deg,
-                                          sun_elevation_deg):  # a moonless night needs no solve
+        # the moon's lamp numbers (info["moon"], the incident meter) also decide the solve
+        moon = (night_module.moon_lamp(prof, atmosphere.latitude, atmosphere.longitude, time_iso, observer_altitude_m)
+                if night_on else None)
+        if sunlit or night_module.moonlit(moon.elevation_deg, sun_elevation_deg):  # a moonless night needs no solve
             solution = solutions.get(prof, settings, progress=_Orders(progress))
         solve_s = time.perf_counter() - t_solve
         if not night_on:
@@ -574,8 +575,6 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
                 sun_elevation_deg=sun_elevation_deg, observer_altitude_m=observer_altitude_m, quality=settings,
                 solution=solution, include_moon_disc=include_sun, band_pixels=ENV_BAND_PIXELS)
             rgb = fit_into_gamut(rgb + add)
-            moon = night_module.moon_lamp(prof, atmosphere.latitude, atmosphere.longitude, time_iso,
-                                          observer_altitude_m)
     else:
         radiance, sun_irradiance = model_radiance(cam, wl, include_sun)
         rgb = reduce_to_rgb(radiance, wl)
