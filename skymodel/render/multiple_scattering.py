@@ -652,8 +652,8 @@ def gathered_radiance(source: np.ndarray, ground_radiance: np.ndarray, M: np.nda
     n_wl, n_rays = grid.n_wl, grid.n_h * grid.n_mu
     assert ground_radiance.shape == (grid.n_mus, n_wl), ground_radiance.shape
     l_ray = np.matmul(M, to_ray_layout(source, grid))
-    l_ray = l_ray.reshape(n_wl, n_rays, grid.n_phi, grid.n_mus) + G[:, :, None, None] * ground_radiance.T[:, None, None, :]
-    return to_dir_layout(l_ray.reshape(n_wl, n_rays, grid.n_phi * grid.n_mus), grid)
+    l_ray.reshape(n_wl, n_rays, grid.n_phi, grid.n_mus)[...] += G[:, :, None, None] * ground_radiance.T[:, None, None, :]
+    return to_dir_layout(l_ray, grid)
 
 
 def ground_diffuse_irradiance(radiance: np.ndarray, grid: TableGrid) -> np.ndarray:
@@ -756,7 +756,7 @@ def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G:
         lg = albedo[None, :] / np.pi * ground_diffuse_irradiance(radiance, grid)  # radiance leaving the ground
         radiance = gathered_radiance(j_n, lg, M, G, grid)
         if spherical is not None and n <= spherical_orders:
-            radiance = radiance * spherical.correction(j_n, lg, radiance)
+            radiance *= spherical.correction(j_n, lg, radiance)
         e_n = ground_diffuse_irradiance(radiance, grid)
         e_diffuse = e_diffuse + e_n
         series.sizes.append(np.abs(j_n).sum(axis=(1, 2, 3), dtype=np.float64))  # per wavelength
@@ -1066,8 +1066,9 @@ class _SphericalTransport:
                         + i.reshape(c, self.n_steps, self.n_phi, n_sub)).ravel()
                 vals = acc.reshape(-1, 2, n_pr)
                 lo, hi = np.take(vals, rows, axis=0), np.take(vals, rows + 1, axis=0)
-                dx = (self.mus_nodes[i + 1] - self.mus_nodes[i]).reshape(-1, 1)
-                got = _sun_interp_cubic(lo[:, 0], hi[:, 0], lo[:, 1], hi[:, 1], dx, f.reshape(-1, 1),
+                # in float32, as the source (in float64 the cubic's arrays were twice the memory traffic)
+                dx = (self.mus_nodes[i + 1] - self.mus_nodes[i]).reshape(-1, 1).astype(np.float32)
+                got = _sun_interp_cubic(lo[:, 0], hi[:, 0], lo[:, 1], hi[:, 1], dx, f.reshape(-1, 1).astype(np.float32),
                                         (self.mus_nodes[i + 1] <= 0.0).reshape(-1, 1)).reshape(c, self.n_steps, self.n_p, n_pr)
                 out[a:b] = np.einsum("csw,cspw->cpw", self.weight[a:b], got)
 
