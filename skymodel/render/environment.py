@@ -197,7 +197,8 @@ def display_exposure(rgb_image, camera, sun_strength: float, sun_elevation_deg: 
     plane from a lamp not in the image (the moon lamp's). Returns ``{"exposure",
     "exposure_incident", "exposure_sky", "horizontal_illuminance_Y", "sky_log_average_Y"}``
     (stops and colour-scale units)."""
-    e_h = horizontal_illuminance(rgb_image, camera, sun_strength, sun_elevation_deg) + float(extra_horizontal_illuminance)
+    e_h = (horizontal_illuminance(rgb_image, camera, sun_strength, sun_elevation_deg)
+           + float(extra_horizontal_illuminance))
     l_sky = sky_log_average(rgb_image, camera)
     incident, sky = exposure_from_illuminance(e_h), exposure_from_sky(l_sky)
     return {"exposure": min(incident, sky), "exposure_incident": incident, "exposure_sky": sky,
