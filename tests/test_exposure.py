@@ -14,9 +14,9 @@ from skymodel.cli.main import main
 from skymodel.render import exposure
 
 TINY = ["--location", "zaragoza", "--quality", "preview", "--wavelength-step", "50", "--altitudes", "32", "--quiet"]
-#: Sky log-averages [cd m^-2] of an environment map (rural, 2026-12-21, 32 px; docs/night.md
-#: "The exposure"): noon, a 93 %-lit moon 66 degrees up, a moonless night.
-NOON, FULL_MOON, MOONLESS = 2732.0, 5.5e-3, 3.1e-4
+#: Sky log-averages [cd m^-2] of an environment map (rural, 64 px, preview; docs/night.md "The
+#: exposure"): noon of 2026-12-21, a 93 %-lit moon 66 degrees up that night, a moonless night.
+NOON, FULL_MOON, MOONLESS = 2750.0, 5.39e-3, 2.96e-4
 
 
 def _y(cd_m2):
@@ -47,7 +47,7 @@ def test_a_moonlit_night_is_shown_brighter_than_a_moonless_one_and_both_under_th
     day, moon, dark = (exposure.sky_target(_y(v)) for v in (NOON, FULL_MOON, MOONLESS))
     under_moon, under_dark = np.log2(day / moon), np.log2(day / dark)
     assert under_moon == pytest.approx(3.6, abs=0.1)  # the figures docs/night.md states
-    assert under_dark == pytest.approx(4.6, abs=0.1)
+    assert under_dark == pytest.approx(4.7, abs=0.1)
     assert dark < moon < day
 
 
@@ -98,3 +98,16 @@ def test_the_cli_png_and_the_environment_map_get_the_same_exposure(monkeypatch, 
     # the disc left out: the sun and the moon still count as light on the ground
     no_disc = _cli_meter(monkeypatch, tmp_path, t, "--no-sun")
     assert no_disc["exposure"] == pytest.approx(cli["exposure"], abs=0.05)
+
+
+def test_save_outputs_refuses_a_bad_average_luminance(tmp_path):
+    from skymodel.errors import SkymodelInputError
+    from skymodel.render import image_io
+    from skymodel.render.cameras import make_camera
+
+    cam = make_camera("equirectangular", 8)
+    for bad in (0.0, -1.0, float("nan"), "grey"):
+        with pytest.raises(SkymodelInputError, match="average_luminance"):
+            image_io.save_outputs(png=str(tmp_path / "a.png"), xyz=np.ones(cam.shape + (3,)), wavelengths=None,
+                                  camera=cam, average_luminance=bad)
+    assert not (tmp_path / "a.png").exists()

@@ -21,7 +21,7 @@ The rule: two meters, the darker wins (:func:`display_exposure`)
       the horizon is shown at :func:`sky_target` ``(L)``:
 
       - day and twilight, L >= :data:`NIGHT_KNEE_CD_M2` (3 cd m^-2, the clear sky at a sun
-        near -5.5 degrees): ``SKY_KEY_SCALE * key(L)``, the automatic key of Krawczyk,
+        near -5.3 degrees): ``SKY_KEY_SCALE * key(L)``, the automatic key of Krawczyk,
         Myszkowski & Seidel (2005), ``key = 1.03 - 2 / (2 + log10(L + 1))`` (L in cd m^-2),
         so dusk is shown darker than noon, as a dusk photograph is;
       - below the knee (nautical twilight and the night): ``target(knee) (L / knee)^(1/4)``
@@ -31,11 +31,12 @@ The rule: two meters, the darker wins (:func:`display_exposure`)
         every night at the same level whatever the moon does.
 
     Both branches meet at the knee and ``sky_target`` rises more slowly than L (its
-    log-slope is at most 0.51), so the exposure is continuous and strictly decreasing in
-    the light: a sequence whose light changes smoothly gets a smooth exposure (no jump at
-    the knee, at -18 degrees or at moonrise). Measured figures (docs/night.md): the day
-    sky at 0.18-0.19, the sun at the horizon 0.18, a full-moon night sky at 0.015 (3.6
-    stops under the day's), a moonless one at 0.007 (4.6 stops under).
+    log-slope is 0.03-0.37 above the knee, 0.25 below), so the exposure is continuous and
+    strictly decreasing in the light, never by more stops than the light: a sequence whose
+    light changes smoothly gets a smooth exposure (no jump at the knee, at -18 degrees or at
+    moonrise). Measured figures (docs/night.md): the day
+    sky shown at 0.18-0.19, a full moon high up at 0.015 (3.6 stops under the day's), a
+    moonless night at 0.0073 (4.7 stops under).
 
 A user offset is added by the caller (the add-on's Exposure Offset, ``--exposure``).
 
@@ -67,7 +68,8 @@ CANDELA_PER_UNIT = 683.0
 #: 0.28 * 0.59 = 0.166, no brighter than at 30 (measured figures in docs/blender.md).
 SKY_KEY_SCALE = 0.28
 #: Sky log-average luminance [cd m^-2] below which the night branch of :func:`sky_target`
-#: holds (the clear sky at a sun near -5.5 degrees, the end of civil dusk).
+#: holds: the clear sky at a sun near -5.3 degrees, toward the end of civil dusk (Zaragoza,
+#: June evening: 17.6 cd m^-2 at -3.7 degrees, 0.52 at -6.6; docs/time.md).
 NIGHT_KNEE_CD_M2 = 3.0
 #: Log-slope of :func:`sky_target` below the knee: the exposure opens up by ``1 - NIGHT_SLOPE``
 #: of the stops the light falls.

@@ -716,8 +716,13 @@ def save_outputs(out=None, png=None, spectral=None, *, radiance=None, wavelength
         raise SkymodelInputError("colour_space", colour_space, "one of: " + ", ".join(_EXR_SPACES))
     if exposure_ev is not None:
         scene.check("exposure_ev", exposure_ev)
-    if average_luminance is not None and not (float(average_luminance) > 0 and math.isfinite(average_luminance)):
-        raise SkymodelInputError("average_luminance", average_luminance, "a positive finite luminance")
+    if average_luminance is not None:
+        try:
+            ok = float(average_luminance) > 0 and math.isfinite(float(average_luminance))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise SkymodelInputError("average_luminance", average_luminance, "a positive finite luminance")
     if (radiance is None) == (xyz is None):
         raise SkymodelInputError("radiance", "both or neither of radiance and xyz", "exactly one of them")
     if xyz is not None:
