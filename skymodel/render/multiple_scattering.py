@@ -104,7 +104,7 @@ class MultipleScatteringField:
     mu_nodes: np.ndarray
     phi_nodes: np.ndarray
     mus_nodes: np.ndarray
-    source: np.ndarray  # (n_wl, n_mu, n_phi, n_h, n_mus)  W m^-2 sr^-1 nm^-1 per metre
+    source: np.ndarray  # (n_wl, n_mu, n_phi, n_h, n_mus) float32, W m^-2 sr^-1 nm^-1 per metre
     ground_diffuse_irradiance: np.ndarray  # (n_mus, n_wl) W m^-2 nm^-1
     orders: int
     order_contributions: list  # relative size of each order's source (diagnostic)
@@ -181,7 +181,7 @@ class MultipleScatteringField:
             # then holds the only copy of J (``source`` becomes a view of it)
             for i in range(n_mu):
                 tab[i + 1, ..., 0, :] = src[i]
-                tab[i + 1, ..., 1, :] = _log_slopes(self.mus_nodes, src[i], axis=2)
+                tab[i + 1, ..., 1, :] = _log_slopes(self.mus_nodes, np.asarray(src[i], dtype=np.float64), axis=2)
             for pole, ring in ((0, 1), (n_mu + 1, n_mu)):
                 j = tab[ring, ..., 0, :]  # (n_phi, n_h, n_mus, n_wl); the phi nodes are equally spaced
                 jm = j.mean(axis=0)
@@ -832,7 +832,8 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
                                    spherical_orders=spherical_orders, progress=progress)
     if orders is None:
         add_geometric_tail(series)
-    source = series.source.reshape(grid.n_wl, grid.n_mu, grid.n_phi, grid.n_h, grid.n_mus).astype(np.float64)
+    # float32, as solved (the interpolation table is float32 too; a float64 copy was 0.13 GB at final)
+    source = series.source.reshape(grid.n_wl, grid.n_mu, grid.n_phi, grid.n_h, grid.n_mus)
     return MultipleScatteringField(grid.wavelengths_nm, grid.h_nodes, grid.mu_nodes, grid.phi_nodes, grid.mus_nodes,
                                    source, series.ground_irradiance.astype(np.float64), series.orders,
                                    series.contributions)
