@@ -27,17 +27,15 @@ and the term is second order). It redistributes light (a constant L gives dJ = 0
 it conserves energy up to the grid's quadrature.
 
 Opt-in (``MarchSettings.peak_diffuse``, off in every preset), because against the Monte
-Carlo tracer it fixes the desert and overshoots over the darker rural ground (``final``,
+Carlo tracer it fixes the desert and low suns but makes rural at sun 60 worse (``final``,
 view zenith 88-89 degrees, marcher / MC - 1 at 450/550/650 nm, MC se 0.2-0.5 %; commands
 in notebooks/truth_misses): desert AOD 0.5 sun 60, 89/180 -2.37/-5.21/-8.24 ->
 +0.36/+0.50/+0.16 %, 89/90 -3.40/-4.75/-7.60 -> -0.52/+0.95/+0.31 %; desert sun 20, 89/90
 -1.57/-2.50/-4.54 -> -0.10/+0.43/-0.42 %; but rural AOD 0.2 sun 60, 89/0
--0.45/-0.28/+0.05 -> -1.43/-1.48/-1.33 %, sun 20, 89/0 +0.49/+0.97/+0.72 ->
--0.90/-0.78/-1.30 %, 89/180 -1.78/+0.54/+0.83 -> -2.52/-0.43/-0.45 %. A Rayleigh-only sky
-(no peak) at sun 20 is within 0.5 % of the tracer at these views, so the rural overshoot
-is not a Rayleigh bias the term uncovers; where it comes from is open (the one-dimensional
-projection, the grid's L below the horizon, or the broad rural peak: 68 % of it beyond 1
-degree, against 8 % for coarse dust).
+-0.45/-0.28/+0.05 -> -1.43/-1.48/-1.33 %. The term itself is right there: the solver with a
+3-degree cone on 64 x 48 direction nodes (no term; about 12x the solver time) gives
+-1.30/-1.36/-1.25 % at 89/0 (every view at 85-89 degrees within 0.25 % of the term), so
+rural's horizon carries a second error that the missing term used to offset.
 """
 
 from __future__ import annotations
