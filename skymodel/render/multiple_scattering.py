@@ -62,6 +62,7 @@ import numpy as np
 from skymodel.geometry import altitude_grid
 from skymodel.numerics import linear_interp_matrix
 from skymodel.render.medium import FactoredMedium, march_samples
+from skymodel.render.peak_diffuse import PeakDiffuse
 from skymodel.render.rays import altitude_along, atmosphere_segment
 from skymodel.render.sun_transmittance import SUN_ANGULAR_RADIUS_RAD, SunTransmittance
 from skymodel.render.threads import SOLVER_THREADS, in_threads
@@ -743,14 +744,16 @@ class OrderSeries:
 def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G: np.ndarray, grid: TableGrid,
                           ground_albedo: np.ndarray, *, orders: int | None, max_orders: int, tolerance: float,
                           spherical: _SphericalTransport | None = None, spherical_orders: int = 0,
-                          progress=None) -> OrderSeries:
+                          progress=None, peak=None) -> OrderSeries:
     """Orders 2, 3, ... from the first-order ``radiance`` (dir layout): each order
     scatters the last order's radiance into a source (:func:`scattered_source`), then
     transports it with the ground's reflection (:func:`gathered_radiance`; through
     ``spherical``'s correction for orders up to ``spherical_orders``). Up to ``orders``
     when given, else until an order adds less than ``tolerance`` of the sum of the source
     (relative, summed over the grid and the wavelengths) or ``max_orders`` is reached.
-    ``ground_albedo`` (n_wl,) float32; ``progress(n, size)`` after each order."""
+    ``ground_albedo`` (n_wl,) float32; ``progress(n, size)`` after each order; ``peak`` (a
+    :class:`~skymodel.render.peak_diffuse.PeakDiffuse` or None) adds the cut forward peaks'
+    scattering of each order's radiance near the horizon."""
     assert tolerance >= 0.0 and max_orders >= 1, (tolerance, max_orders)
     albedo = ground_albedo
     species = combined_phase_modes(species, grid) if not isinstance(species, np.ndarray) else species
@@ -761,6 +764,8 @@ def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G:
     j_n = e_n = None
     for n in range(2, limit + 1):
         j_n = scattered_source(radiance, species, grid)
+        if peak:
+            j_n += peak.source(radiance)
         j_ms += j_n
         series.orders = n
         size = float(np.abs(j_n).sum()) / max(float(np.abs(j_ms).sum()), 1e-300)
@@ -807,7 +812,8 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
                               n_altitudes: int = 24, n_mu: int = 32, n_phi: int = 12, n_mus: int = 24,
                               n_steps: int = 48, orders: int | None = None, max_orders: int = 20,
                               tolerance: float = 1e-3, spherical_orders: int = 2,
-                              spherical_probe_step_nm: float = 100.0, progress=None) -> MultipleScatteringField:
+                              spherical_probe_step_nm: float = 100.0, peak_diffuse: bool = False,
+                              progress=None) -> MultipleScatteringField:
     """Solve orders 2..N of scattering for ``profile`` (already at the solver's
     wavelengths). ``sun_table`` must hold the delta-M scaled extinction as medium 1.
     ``orders`` fixes the highest order (1 = single scattering only, no field); otherwise
@@ -816,7 +822,9 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
     ...) follow the sun angle of every point along the grid rays instead of keeping
     the independent columns: 0 none, 1 the first (exact, :func:`_first_order_spherical`),
     n > 1 also orders 2..n, corrected at probe wavelengths about
-    ``spherical_probe_step_nm`` apart (:class:`_SphericalTransport`).
+    ``spherical_probe_step_nm`` apart (:class:`_SphericalTransport`). ``peak_diffuse``: add
+    the cut forward peaks' small-angle scattering of every order's radiance near the horizon
+    (:mod:`skymodel.render.peak_diffuse`).
 
     The steps: :func:`build_table_grid`, :func:`trace_grid_rays`, the column transport
     (:func:`transport_row_scale`, :func:`column_transport_matrix`), the phase matrices
@@ -843,7 +851,8 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
                                                         spherical=spherical_orders >= 1),
                                    species, M, G, grid, profile.ground_albedo.astype(np.float32),
                                    orders=orders, max_orders=max_orders, tolerance=tolerance, spherical=spherical,
-                                   spherical_orders=spherical_orders, progress=progress)
+                                   spherical_orders=spherical_orders, progress=progress,
+                                   peak=PeakDiffuse(profile, medium, grid) if peak_diffuse else None)
     if orders is None:
         add_geometric_tail(series)
     # float32, as solved (the interpolation table is float32 too; a float64 copy was 0.13 GB at final)
