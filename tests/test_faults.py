@@ -44,8 +44,16 @@ def litter(folder):
 def child(script, *args, preexec_fn=None, env=None):
     """Start ``python -c script args`` in the repository (stderr piped)."""
     e = dict(os.environ, PYTHONPATH=ROOT, **(env or {}))
+
+    def start():
+        # a shell's background job starts with SIGINT ignored, and Python then installs no
+        # Ctrl-C handler: give the child SIGINT's usual meaning however the tests were started
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        if preexec_fn is not None:
+            preexec_fn()
+
     return subprocess.Popen([sys.executable, "-c", textwrap.dedent(script), *args], cwd=ROOT, env=e,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=preexec_fn)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=start)
 
 
 #: A child that runs the CLI with the render replaced by a synthetic image (instant) and a
