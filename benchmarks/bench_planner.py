@@ -315,6 +315,11 @@ def measure_pixel_costs(widths_direct=(256, 512), widths_table=(1024, 2048, 4096
     sol = solve_sky(prof, settings)
     t_solve = time.perf_counter() - t0
     rows = []
+    from skymodel.render.cameras import make_camera
+
+    # warm-up, not timed: the first render of a process loads the core's tables
+    render_sky.render_sky_reduced(prof, make_camera("equirectangular", 16), sun_elevation_deg,
+                                  rgb_reduction(prof.wavelengths_nm), 3, quality=settings, solution=sol)
 
     def med(fn):
         ts = []
@@ -332,8 +337,6 @@ def measure_pixel_costs(widths_direct=(256, 512), widths_table=(1024, 2048, 4096
                             .radiance(cam_dirs))
         else:
             t_marcher = None
-        from skymodel.render.cameras import make_camera
-
         cam = make_camera("equirectangular", w)
         t_env = med(lambda: render_sky.render_sky_reduced(prof, cam, sun_elevation_deg, rgb_reduction(prof.wavelengths_nm),
                                                           3, quality=settings, solution=sol, dtype=np.float32))
@@ -636,11 +639,13 @@ def main(argv=None):
     ap.add_argument("--proof-width", type=int, default=256, help="equirectangular width of the proof renders")
     ap.add_argument("--pixels", action="store_true",
                     help="measure what an environment's pixels add to its build (the planner's per-pixel constants)")
+    ap.add_argument("--qualities", default="preview,final", help="qualities of --pixels")
     ap.add_argument("--repeats", type=int, default=REPEATS, help="timed runs of each build in the proof (alternated)")
     ap.add_argument("--elevations", default=",".join(str(e) for e in ELEVATIONS_DEG))
     args = ap.parse_args(argv)
     if args.pixels:
-        measure_pixel_costs(repeats=args.repeats)
+        for q in args.qualities.split(","):
+            measure_pixel_costs(quality=q, repeats=args.repeats)
         return 0
     if args.doc_only:
         with open(PROOF_JSON, encoding="utf-8") as f:

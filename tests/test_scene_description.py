@@ -62,6 +62,9 @@ def test_description_from_camera_objects_and_render_settings(scene):
     assert d.farthest_object_m == pytest.approx(far, rel=1e-6)
     assert (d.image_width, d.image_height) == (320, 180)
     assert d.sky_visible and d.sun_elevation_deg == pytest.approx(60.0)
+    assert d.quality == s.quality  # the build's time is predicted at the quality it is built at (#23)
+    s.quality = "final"
+    assert scene_description.describe(scene, s).quality == "final"
     scene.render.film_transparent = True
     scene.unit_settings.scale_length = 2.0
     d2 = scene_description.describe(scene, s)

@@ -53,17 +53,18 @@ SHARES = {"aerial_perspective": 0.35, "physical": 0.35, "orders": 0.15, "spectra
 PHYSICAL_SHARE = SHARES["physical"]
 #: Environment image widths the planner picks from (height = width / 2).
 MIN_ENV_WIDTH, MAX_ENV_WIDTH = 256, 8192
-#: Build time of an environment image per pixel (s/px) beyond the pixels of the render whose
-#: measured time the prediction starts from, for images that march every pixel (fewer than
-#: :data:`TABLE_MIN_PIXELS`). Measured (rural, June, ``final``, 81 wavelengths, the solve reused,
-#: 2-core machine; ``benchmarks/bench_planner.py --pixels``, docs/planner.md "Cost").
-ENV_SECONDS_PER_PIXEL = 4.25e-6
+#: Build time of an environment image per pixel (s/px), by quality, beyond the pixels of the
+#: render whose measured time the prediction starts from, for images that march every pixel
+#: (fewer than :data:`TABLE_MIN_PIXELS`). Measured: ``python benchmarks/bench_planner.py --pixels``
+#: (rural, June, 5 nm, the solve reused, median of 3; docs/planner.md "Cost" has the run).
+ENV_SECONDS_PER_PIXEL = {"preview": 4.25e-6, "final": 4.25e-6, "reference": 4.25e-6}
 #: The same for images of :data:`TABLE_MIN_PIXELS` pixels or more, which resample the sky-view
-#: table (:mod:`skymodel.render.skyview`): the table's march is a fixed cost
-#: (:data:`ENV_TABLE_FIXED_S`) and each pixel costs only its lookup and reduction.
-ENV_SECONDS_PER_PIXEL_TABLE = 7.6e-7
-#: The sky-view table's own march (s), paid once by images of :data:`TABLE_MIN_PIXELS` or more.
-ENV_TABLE_FIXED_S = 0.0
+#: table (:mod:`skymodel.render.skyview`): each pixel costs only its lookup and reduction.
+ENV_SECONDS_PER_PIXEL_TABLE = {"preview": 7.6e-7, "final": 7.6e-7, "reference": 7.6e-7}
+#: The sky-view table's own march (s), by quality, paid once by images of
+#: :data:`TABLE_MIN_PIXELS` pixels or more (the intercept of their times less that of the
+#: marched sizes).
+ENV_TABLE_FIXED_S = {"preview": 0.0, "final": 0.0, "reference": 0.0}
 #: Images of this many pixels or more resample the sky-view table instead of marching every
 #: pixel (``skymodel.render.skyview.TABLE_MIN_PIXELS``; a test keeps them equal).
 TABLE_MIN_PIXELS = 1 << 18
@@ -173,11 +174,11 @@ class Plan:
 
     def predicted_environment_s(self, width: int, everything_on: bool = False) -> float:
         """Predicted seconds to build this plan's environment (or, ``everything_on``, the
-        build with every effect on at the ``final`` quality) at ``width`` x ``width / 2``: the
+        build with every effect on) at the scene's quality, ``width`` x ``width / 2``: the
         planner's own :func:`environment_build_time`, as :func:`decide_angular_resolution`
         uses it. A cold build: the multiple-scattering solve is included."""
         t = self.predicted_time_everything_s if everything_on else self.predicted_time_s
-        return environment_build_time(t, width, self.time_fixed_scale, self.time_base_width)
+        return environment_build_time(t, width, self.time_fixed_scale, self.time_base_width, self.scene.quality)
 
     def warnings(self) -> list[str]:
         """What the user must be told before this plan is built ([] when nothing)."""
@@ -378,12 +379,10 @@ def scattering_order_options(ctx: _Planning) -> dict:
     orders = {int(v): (eff.error(n, el, ctx.scene), eff.time(n, el), f"effects.json {n}")
               for v, n in eff.knob_rows("orders_").items()}
     if acc is not None:
-        rows = acc.knob("orders", el, ctx.acc_metric)
-        t_conv = rows.get("tolerance", (0, None))[1]
-        for v, (e, t) in rows.items():
+        for v, (e, _) in acc.knob("orders", el, ctx.acc_metric).items():
             if isinstance(v, (int, float)) and float(v).is_integer():
-                orders.setdefault(int(v), (e, t_ref * t / t_conv if (t and t_conv) else None,
-                                           f"measured.json orders={v}"))
+                ratio = acc.time_ratio("orders", v, "tolerance")
+                orders.setdefault(int(v), (e, t_ref * ratio if ratio else None, f"measured.json orders={v}"))
     return orders
 
 
@@ -433,12 +432,10 @@ def spectral_step_options(ctx: _Planning) -> dict:
     for v, n in eff.knob_rows("wavelength_step_").items():
         steps[float(v)] = (eff.error(n, el, ctx.scene), eff.time(n, el), f"effects.json {n}")
     if acc is not None:
-        rows = acc.knob("wavelengths", el, ctx.acc_metric)
-        ref_t = rows.get(81, (0, None))[1]
-        for v, (e, t) in rows.items():
+        for v, (e, _) in acc.knob("wavelengths", el, ctx.acc_metric).items():
             if v in _WL_COUNT_STEP:
-                tt = t_ref * t / ref_t if (t and ref_t) else None
-                steps[_WL_COUNT_STEP[v]] = (e, tt, f"measured.json wavelengths={v}")
+                ratio = acc.time_ratio("wavelengths", v, 81)
+                steps[_WL_COUNT_STEP[v]] = (e, t_ref * ratio if ratio else None, f"measured.json wavelengths={v}")
     return steps
 
 
@@ -452,9 +449,9 @@ def decide_spectral_resolution(ctx: _Planning) -> tuple[Decision, float]:
             best = s
             break
     e, t, src = steps[best]
-    saved = 0.0
-    if t is not None:
-        saved = max(0.0, steps.get(10.0, (0, ctx.t_ref))[1] - t) if best > 10.0 else 0.0
+    # against the everything-on build's grid (the finest: the reference's 10 nm, or 5 nm from
+    # the accuracy table), whose time is the reference's
+    saved = max(0.0, ctx.t_ref - t) if t is not None else 0.0
     n_wl = int(round(400.0 / best)) + 1
     finer = [s for s in steps if s < best]
     return Decision(
@@ -469,28 +466,28 @@ def volume_render_time(scene: SceneDescription, n_layers: int) -> float:
                  * scene.samples)
 
 
-def environment_pixel_time(width: int) -> float:
+def environment_pixel_time(width: int, quality: str = "final") -> float:
     """Predicted seconds the pixels of a ``width`` x ``width / 2`` environment add to its
-    build: :data:`ENV_SECONDS_PER_PIXEL` each when every pixel is marched (fewer than
-    :data:`TABLE_MIN_PIXELS`), else the sky-view table's march (:data:`ENV_TABLE_FIXED_S`)
+    build at ``quality``: :data:`ENV_SECONDS_PER_PIXEL` each when every pixel is marched (fewer
+    than :data:`TABLE_MIN_PIXELS`), else the sky-view table's march (:data:`ENV_TABLE_FIXED_S`)
     and :data:`ENV_SECONDS_PER_PIXEL_TABLE` each."""
     px = int(width) * (int(width) // 2)
     if px < TABLE_MIN_PIXELS:
-        return float(ENV_SECONDS_PER_PIXEL * px)
-    return float(ENV_TABLE_FIXED_S + ENV_SECONDS_PER_PIXEL_TABLE * px)
+        return float(ENV_SECONDS_PER_PIXEL[quality] * px)
+    return float(ENV_TABLE_FIXED_S[quality] + ENV_SECONDS_PER_PIXEL_TABLE[quality] * px)
 
 
 def environment_build_time(t_table: float, width: int, fixed_scale: float = ENV_FIXED_PER_TABLE,
-                           base_width: int = EFFECT_TABLE_WIDTH) -> float:
-    """Predicted seconds to build an environment ``width`` x ``width / 2`` from ``t_table``,
-    the measured (or ratio-scaled) time of a render ``base_width`` x ``base_width / 2`` (the
-    effect table's 64x32, or the accuracy table's ``final`` preset at 512x256): that time
-    times ``fixed_scale`` (:data:`ENV_FIXED_PER_TABLE` for the effect table's preview renders,
-    1 for the accuracy table's), less what that render's pixels cost, plus what the
-    environment's pixels cost (:func:`environment_pixel_time`; never less than the part
-    that does not depend on the size)."""
-    fixed = max(0.0, fixed_scale * float(t_table) - environment_pixel_time(base_width))
-    return float(fixed + environment_pixel_time(width))
+                           base_width: int = EFFECT_TABLE_WIDTH, quality: str = "final") -> float:
+    """Predicted seconds to build an environment ``width`` x ``width / 2`` at ``quality`` from
+    ``t_table``, the measured (or ratio-scaled) time of a render ``base_width`` x
+    ``base_width / 2`` (the effect table's 64x32, or the accuracy table's preset at 512x256):
+    that time times ``fixed_scale`` (:data:`ENV_FIXED_PER_TABLE` for the effect table's
+    preview renders, 1 for the accuracy table's), less what that render's pixels cost, plus
+    what the environment's pixels cost (:func:`environment_pixel_time`; the part that does
+    not depend on the size is never taken below 0)."""
+    fixed = max(0.0, fixed_scale * float(t_table) - environment_pixel_time(base_width, quality))
+    return float(fixed + environment_pixel_time(width, quality))
 
 
 def decide_volume_layers(ctx: _Planning, ap_err: float) -> Decision:
@@ -564,7 +561,7 @@ def decide_angular_resolution(scene: SceneDescription, t_table: float = 0.0,
     ``base_width`` wide)."""
 
     def build_time(w):
-        return environment_build_time(t_table, w, fixed_scale, base_width)
+        return environment_build_time(t_table, w, fixed_scale, base_width, scene.quality)
 
     if not scene.sky_visible:
         return Decision("angular_resolution", True, MIN_ENV_WIDTH,
@@ -607,10 +604,11 @@ def predicted_times(ctx: _Planning, saved: float) -> tuple[float, float, str]:
     basis = (f"marcher time at the effect table's size ({eff.table.get('camera', {}).get('width', '?')}x"
              f"{eff.table.get('camera', {}).get('height', '?')}, preview tables) on its machine")
     t_plan = max(0.0, t_ref - saved)
-    if acc is not None and acc.preset_time("final", el):
-        scale = acc.preset_time("final", el) / t_ref
-        t_plan, t_all = t_plan * scale, acc.preset_time("final", el)
-        basis = "the accuracy table's 'final' preset time, scaled by the effect table's time ratios"
+    q = ctx.scene.quality
+    if acc is not None and acc.preset_time(q, el):
+        scale = acc.preset_time(q, el) / t_ref
+        t_plan, t_all = t_plan * scale, acc.preset_time(q, el)
+        basis = f"the accuracy table's '{q}' preset time, scaled by the effect table's time ratios"
     else:
         t_all = t_ref
     return t_plan, t_all, basis
