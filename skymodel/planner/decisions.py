@@ -55,16 +55,21 @@ PHYSICAL_SHARE = SHARES["physical"]
 MIN_ENV_WIDTH, MAX_ENV_WIDTH = 256, 8192
 #: Build time of an environment image per pixel (s/px), by quality, beyond the pixels of the
 #: render whose measured time the prediction starts from, for images that march every pixel
-#: (fewer than :data:`TABLE_MIN_PIXELS`). Measured: ``python benchmarks/bench_planner.py --pixels``
-#: (rural, June, 5 nm, the solve reused, median of 3; docs/planner.md "Cost" has the run).
-ENV_SECONDS_PER_PIXEL = {"preview": 4.25e-6, "final": 4.25e-6, "reference": 4.25e-6}
+#: (fewer than :data:`TABLE_MIN_PIXELS`): the add-on's build reduced to RGB
+#: (``render_sky_reduced``). Measured: ``python benchmarks/bench_planner.py --pixels``
+#: (rural, June, 5 nm, sun 30, the solve reused; median CPU seconds of 3 at 256 and 512 px
+#: wide, fitted; b6e4cde, 2026-11-26, load 6-7). The accuracy table's preset render marches
+#: full spectra, 1.25e-5 s/px at final: its 512x256 pixels cost 1.3 s more than the constant
+#: says, 5 % of a final render. ``reference`` was not measured: final's.
+ENV_SECONDS_PER_PIXEL = {"preview": 2.4e-6, "final": 2.7e-6, "reference": 2.7e-6}
 #: The same for images of :data:`TABLE_MIN_PIXELS` pixels or more, which resample the sky-view
-#: table (:mod:`skymodel.render.skyview`): each pixel costs only its lookup and reduction.
-ENV_SECONDS_PER_PIXEL_TABLE = {"preview": 7.6e-7, "final": 7.6e-7, "reference": 7.6e-7}
+#: table (:mod:`skymodel.render.skyview`): each pixel costs only its lookup and reduction
+#: (the same run at 1024, 2048 and 4096 px wide).
+ENV_SECONDS_PER_PIXEL_TABLE = {"preview": 7.4e-7, "final": 5.8e-7, "reference": 5.8e-7}
 #: The sky-view table's own march (s), by quality, paid once by images of
 #: :data:`TABLE_MIN_PIXELS` pixels or more (the intercept of their times less that of the
-#: marched sizes).
-ENV_TABLE_FIXED_S = {"preview": 0.0, "final": 0.0, "reference": 0.0}
+#: marched sizes; the same run).
+ENV_TABLE_FIXED_S = {"preview": 0.35, "final": 1.65, "reference": 1.65}
 #: Images of this many pixels or more resample the sky-view table instead of marching every
 #: pixel (``skymodel.render.skyview.TABLE_MIN_PIXELS``; a test keeps them equal).
 TABLE_MIN_PIXELS = 1 << 18
