@@ -8,6 +8,7 @@ import pytest
 
 from skymodel import Atmosphere
 from skymodel.render.marcher import MarchSettings, SkyMarcher
+from skymodel.render import multiple_scattering as ms
 from skymodel.render.multiple_scattering import _log_slopes, _sun_interp, _sun_interp_cubic, sun_elevation_nodes
 
 
@@ -107,3 +108,15 @@ def test_the_zenith_reads_the_azimuthal_mean_not_one_azimuth():
     # the nadir likewise
     at_nadir = field.source_at(2000.0, -1.0, phi, 0.34)
     np.testing.assert_allclose(at_nadir, np.broadcast_to(at_nadir[0], at_nadir.shape), rtol=1e-6)
+
+
+@pytest.mark.parametrize("nodes", [np.sin(np.radians(ms.sun_elevation_nodes(32))), np.sin(np.radians(ms.sun_elevation_nodes(24))),
+                                   np.array([0.0, 1.0, 2.5, 3.0, 7.0]), np.array([0.0, 1.0, 2.0, 3.0]),
+                                   np.array([-0.2, 0.1, 0.7]), np.array([0.0, 0.5])])
+def test_spline_slope_matrix_equals_scipy(nodes):
+    """The numpy slope matrix of the not-a-knot spline equals scipy's CubicSpline (the oracle)."""
+    from scipy.interpolate import CubicSpline
+
+    ref = CubicSpline(nodes, np.eye(nodes.size), axis=0)(nodes, 1)
+    got = ms._spline_slope_matrix(tuple(nodes))
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-14 * np.abs(ref).max())

@@ -61,6 +61,7 @@ from skymodel.numerics import linear_interp_matrix
 from skymodel.optics.profile import LayeredProfile, OpticalProfile
 from skymodel.render.medium import evaluate_many, factor_medium, march_samples
 from skymodel.render.multiple_scattering import MultipleScatteringField, solve_multiple_scattering
+from skymodel.render.threads import in_threads as _in_threads
 from skymodel.render.rays import altitude_along, atmosphere_segment, sun_direction
 from skymodel.render.sun_transmittance import SunTransmittance
 from skymodel.scene import parameter
@@ -727,17 +728,6 @@ def _tau_cells(nodes, tau):
     j += (tau >= nodes[j + 1]) & (j < n - 2)
     j -= (tau < nodes[j]) & (j > 0)
     return j
-
-
-def _in_threads(work, starts, threads: int):
-    """[work(i) for i in starts], on ``threads`` threads (numpy releases the GIL)."""
-    starts = list(starts)
-    if threads <= 1 or len(starts) <= 1:
-        return [work(i) for i in starts]
-    from concurrent.futures import ThreadPoolExecutor
-
-    with ThreadPoolExecutor(max_workers=threads) as pool:
-        return list(pool.map(work, starts))
 
 
 def render_directions(profile, directions, sun_elevation_deg: float, sun_azimuth_deg: float = 180.0,

@@ -63,6 +63,7 @@ from skymodel.numerics import linear_interp_matrix
 from skymodel.render.medium import FactoredMedium, march_samples
 from skymodel.render.rays import altitude_along, atmosphere_segment
 from skymodel.render.sun_transmittance import SUN_ANGULAR_RADIUS_RAD, SunTransmittance
+from skymodel.render.threads import SOLVER_THREADS, in_threads
 
 
 def sun_elevation_nodes(n: int, lowest_deg: float = -20.0) -> np.ndarray:
@@ -242,12 +243,37 @@ _SLOPE_MATRICES: dict = {}
 
 def _spline_slope_matrix(nodes: tuple) -> np.ndarray:
     """(n, n) matrix D with D @ y = slopes at the nodes of the not-a-knot cubic spline
-    through y (scipy's CubicSpline applied to the unit vectors)."""
+    through y (for n < 4 the polynomial through the n points, as scipy): the tridiagonal system of scipy's ``CubicSpline`` (continuity of the
+    second derivative inside, not-a-knot at both ends) solved for the unit vectors, here
+    in numpy (importing scipy.interpolate cost a render 0.5-2 s; equal to
+    ``CubicSpline(x, np.eye(n), axis=0)(x, 1)`` to 1e-15 of its largest element,
+    tests/test_sun_interpolation.py)."""
     if nodes not in _SLOPE_MATRICES:
-        from scipy.interpolate import CubicSpline
-
-        x = np.asarray(nodes)
-        _SLOPE_MATRICES[nodes] = CubicSpline(x, np.eye(x.size), axis=0)(x, 1)
+        x = np.asarray(nodes, dtype=float)
+        n = x.size
+        if n < 4:  # the line or the parabola through the points
+            k = np.arange(n)
+            v = x[:, None] ** k  # Vandermonde
+            dv = np.where(k > 0, k * x[:, None] ** np.maximum(k - 1, 0), 0.0)
+            _SLOPE_MATRICES[nodes] = dv @ np.linalg.inv(v)
+            return _SLOPE_MATRICES[nodes]
+        dx = np.diff(x)
+        a = np.zeros((n, n))  # a @ slopes = b @ y
+        b = np.zeros((n, n))
+        dy = np.zeros((n - 1, n))  # dy @ y = slope of each interval
+        dy[np.arange(n - 1), np.arange(n - 1)] = -1.0 / dx
+        dy[np.arange(n - 1), np.arange(1, n)] = 1.0 / dx
+        i = np.arange(1, n - 1)
+        a[i, i] = 2.0 * (dx[:-1] + dx[1:])
+        a[i, i + 1] = dx[:-1]
+        a[i, i - 1] = dx[1:]
+        b[1:-1] = 3.0 * (dx[1:, None] * dy[:-1] + dx[:-1, None] * dy[1:])
+        d0, d1 = x[2] - x[0], x[-1] - x[-3]
+        a[0, 0], a[0, 1] = dx[1], d0
+        b[0] = ((dx[0] + 2.0 * d0) * dx[1] * dy[0] + dx[0] ** 2 * dy[1]) / d0
+        a[-1, -1], a[-1, -2] = dx[-2], d1
+        b[-1] = (dx[-1] ** 2 * dy[-2] + (2.0 * d1 + dx[-1]) * dx[-2] * dy[-1]) / d1
+        _SLOPE_MATRICES[nodes] = np.linalg.solve(a, b)
     return _SLOPE_MATRICES[nodes]
 
 
@@ -261,9 +287,19 @@ def _sun_interp_cubic(a, b, sa, sb, dx, f, below):
         t = f
         t2 = t * t
         t3 = t2 * t
-        lg = ((2.0 * t3 - 3.0 * t2 + 1.0) * np.log(a) + (t3 - 2.0 * t2 + t) * dx * sa
-              + (3.0 * t2 - 2.0 * t3) * np.log(b) + (t3 - t2) * dx * sb)
-        out = np.array(np.exp(lg))  # an array even for scalar arguments
+        c0, c1 = 2.0 * t3 - 3.0 * t2 + 1.0, (t3 - 2.0 * t2 + t) * dx
+        c2, c3 = 3.0 * t2 - 2.0 * t3, (t3 - t2) * dx
+        shape = np.broadcast_shapes(*(np.shape(v) for v in (a, b, sa, sb, c1, c3)))
+        if not shape:
+            out = np.array(np.exp(c0 * np.log(a) + c1 * sa + c2 * np.log(b) + c3 * sb))
+        else:  # the same sums in the same order, in two work arrays instead of ten temporaries
+            dtype = np.result_type(c0, c1, c2, c3, a, b, sa, sb)
+            out, term = np.empty(shape, dtype), np.empty(shape, dtype)
+            np.multiply(c0, np.log(a), out=out)
+            out += np.multiply(c1, sa, out=term)
+            out += np.multiply(c2, np.log(b), out=term)
+            out += np.multiply(c3, sb, out=term)
+            np.exp(out, out=out)
     bad = ~np.isfinite(out)  # a or b <= 0, or a slope unknown
     if np.any(bad):
         shape = out.shape
@@ -453,15 +489,23 @@ def column_transport_matrix(grid: TableGrid, rays: GridRays, row_scale: np.ndarr
     n_rays, n_wl = rays.r0.size, grid.n_wl
     assert row_scale.shape == (n_rays, n_wl) and np.all(row_scale <= 1.0), row_scale.shape
     ih, fh, im, fm = rays.ih, rays.fh, rays.im, rays.fm
-    ray_idx = np.broadcast_to(np.arange(n_rays)[:, None], rays.h.shape)
-    M = np.zeros((n_rays, n_rays, n_wl))
-    base = rays.dt[..., None] * rays.trans
+    ray_idx = np.broadcast_to(np.arange(n_rays)[:, None], rays.h.shape).ravel()
+    # every sample's four (altitude, zenith) corners: the flat index ray * nodes + node and
+    # the interpolation weight, corner after corner (the order of the sums)
+    cells, corner_w = [], []
     for dh_, wh in ((0, 1 - fh), (1, fh)):
         for dm_, wm in ((0, 1 - fm), (1, fm)):
-            node = (ih + dh_) * grid.n_mu + (im + dm_)
-            np.add.at(M, (ray_idx.ravel(), node.ravel()), (base * (wh * wm)[..., None]).reshape(-1, n_wl))
-    M *= row_scale[:, None, :]
-    return np.ascontiguousarray(np.moveaxis(M, -1, 0), dtype=np.float32)  # (n_wl, rays, nodes)
+            cells.append(ray_idx * n_rays + ((ih + dh_) * grid.n_mu + (im + dm_)).ravel())
+            corner_w.append((wh * wm).ravel())
+    cells, corner_w = np.concatenate(cells), np.concatenate(corner_w)
+    base = rays.dt[..., None] * rays.trans
+    M = np.empty((n_wl, n_rays, n_rays), dtype=np.float32)
+    # one wavelength at a time, summed in float64 by bincount (the same sums in the same order
+    # as np.add.at into a (rays, nodes, n_wl) float64 array, without its 0.34 GB at final)
+    for w in range(n_wl):
+        m_w = np.bincount(cells, np.tile(base[..., w].ravel(), 4) * corner_w, minlength=n_rays * n_rays)
+        M[w] = m_w.reshape(n_rays, n_rays) * row_scale[:, w, None]
+    return M  # (n_wl, rays, nodes)
 
 
 def ground_transmittance_vector(rays: GridRays) -> np.ndarray:
@@ -550,9 +594,12 @@ def scattered_source(radiance: np.ndarray, species: list, grid: TableGrid) -> np
     assert radiance.shape == (n_wl, n_dir, n_h, n_mus), radiance.shape
     flat = radiance.reshape(n_wl, n_dir, n_h * n_mus)
     out = np.zeros_like(flat)
+    work = np.empty_like(flat)  # one species' term, in place (no field-sized temporaries)
     for pm, sig in species:
-        out += np.matmul(pm, flat).reshape(n_wl, n_dir, n_h, n_mus).__mul__(
-            sig.T[:, None, :, None]).reshape(n_wl, n_dir, -1)
+        np.matmul(pm, flat, out=work)
+        np.multiply(work.reshape(n_wl, n_dir, n_h, n_mus), sig.T[:, None, :, None],
+                    out=work.reshape(n_wl, n_dir, n_h, n_mus))
+        out += work
     return out.reshape(n_wl, n_dir, n_h, n_mus)
 
 
@@ -817,35 +864,46 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
     r_t = R + h
     mus_p = np.tile(mus_nodes, n_phi)  # sun cosine of each (phi, sun) node
     out = np.zeros((n_wl, n_rays, n_p), dtype=f32)
-    chunk = max(1, max_elements // max(1, n_steps * n_p * n_wl))
-    for a in range(0, n_rays, chunk):
-        b = min(n_rays, a + chunk)
-        c = b - a
-        # the table interpolated to each sample's altitude: (c * steps * n_x, k)
-        tab_h = (tab[ih[a:b]] * (1 - fh[a:b, :, None, None]) + tab[ih[a:b] + 1] * fh[a:b, :, None, None])
-        tab_h = tab_h.reshape(-1, tab.shape[-1])
-        mus_t = (r0[a:b, None, None] * mus_p + t[a:b, :, None] * cs[a:b, None, :]) / r_t[a:b, :, None]  # (c, steps, n_p)
-        # as SunTransmittance.optical_depth: under the horizon, the grazing ray
-        xs = st._x_from_mu(rs[a:b, :, None], np.maximum(mus_t, mu_hor[a:b, :, None])) * x_scale
-        j = np.clip(xs.astype(np.int64), 0, n_x - 2)
-        fx = np.clip(xs - j, 0.0, 1.0).astype(f32)[..., None]
-        row = (np.arange(c * n_steps).reshape(c, n_steps, 1) * n_x + j).ravel()
-        tau_k = np.take(tab_h, row, axis=0).reshape(c, n_steps, n_p, -1) * (1 - fx)
-        tau_k += np.take(tab_h, row + 1, axis=0).reshape(c, n_steps, n_p, -1) * fx
-        # optical depth per wavelength, laid out (c, n_wl, steps, n_p) for the matrix product below
-        tau = np.matmul(wk.T, np.ascontiguousarray(tau_k.transpose(0, 3, 1, 2)).reshape(c, -1, n_steps * n_p))
-        trans_sun = np.exp(-tau, out=tau).reshape(c, n_wl, n_steps, n_p)
-        # visible fraction of the disc (0 in the Earth's shadow)
-        if st.earth_shadow:
-            lo, hi = mu_lo[a:b, :, None], mu_hi[a:b, :, None]
-            vis = (mus_t >= hi).astype(f32)
-            part = (mus_t > lo) & (mus_t < hi)
-            if np.any(part):
-                vis[part] = st.visible_fraction(np.broadcast_to(hc[a:b, :, None], mus_t.shape)[part], mus_t[part])
-            trans_sun *= vis[:, None]
-        # sum over the steps for every species at once: (c, n_wl, K, steps) @ (c, n_wl, steps, n_p)
-        gathered = np.matmul(weights[a:b], trans_sun)  # (c, n_wl, K, n_p)
-        out[:, a:b] += np.einsum("cwkp,kcwp->wcp", gathered, phases[:, np.arange(a, b) % n_mu])
+    # chunks of rays on SOLVER_THREADS threads (each chunk writes its own rays of ``out``);
+    # each thread keeps one work array for the chunk's optical depth, reused chunk after
+    # chunk: allocated anew each time, its pages were zeroed by the kernel again and again
+    threads = max(1, SOLVER_THREADS)
+    chunk = max(1, max_elements // threads // max(1, n_steps * n_p * n_wl))
+    starts = list(range(0, n_rays, chunk))
+
+    def rays_of_thread(k):
+        work = np.empty(chunk * n_wl * n_steps * n_p, dtype=f32)
+        for a in starts[k::threads]:
+            b = min(n_rays, a + chunk)
+            c = b - a
+            # the table interpolated to each sample's altitude: (c * steps * n_x, k)
+            tab_h = (tab[ih[a:b]] * (1 - fh[a:b, :, None, None]) + tab[ih[a:b] + 1] * fh[a:b, :, None, None])
+            tab_h = tab_h.reshape(-1, tab.shape[-1])
+            mus_t = (r0[a:b, None, None] * mus_p + t[a:b, :, None] * cs[a:b, None, :]) / r_t[a:b, :, None]  # (c, steps, n_p)
+            # as SunTransmittance.optical_depth: under the horizon, the grazing ray
+            xs = st._x_from_mu(rs[a:b, :, None], np.maximum(mus_t, mu_hor[a:b, :, None])) * x_scale
+            j = np.clip(xs.astype(np.int64), 0, n_x - 2)
+            fx = np.clip(xs - j, 0.0, 1.0).astype(f32)[..., None]
+            row = (np.arange(c * n_steps).reshape(c, n_steps, 1) * n_x + j).ravel()
+            tau_k = np.take(tab_h, row, axis=0).reshape(c, n_steps, n_p, -1) * (1 - fx)
+            tau_k += np.take(tab_h, row + 1, axis=0).reshape(c, n_steps, n_p, -1) * fx
+            # optical depth per wavelength, laid out (c, n_wl, steps, n_p) for the matrix product below
+            tau = np.matmul(wk.T, np.ascontiguousarray(tau_k.transpose(0, 3, 1, 2)).reshape(c, -1, n_steps * n_p),
+                            out=work[:c * n_wl * n_steps * n_p].reshape(c, n_wl, n_steps * n_p))
+            trans_sun = np.exp(np.negative(tau, out=tau), out=tau).reshape(c, n_wl, n_steps, n_p)
+            # visible fraction of the disc (0 in the Earth's shadow)
+            if st.earth_shadow:
+                lo, hi = mu_lo[a:b, :, None], mu_hi[a:b, :, None]
+                vis = (mus_t >= hi).astype(f32)
+                part = (mus_t > lo) & (mus_t < hi)
+                if np.any(part):
+                    vis[part] = st.visible_fraction(np.broadcast_to(hc[a:b, :, None], mus_t.shape)[part], mus_t[part])
+                trans_sun *= vis[:, None]
+            # sum over the steps for every species at once: (c, n_wl, K, steps) @ (c, n_wl, steps, n_p)
+            gathered = np.matmul(weights[a:b], trans_sun)  # (c, n_wl, K, n_p)
+            out[:, a:b] += np.einsum("cwkp,kcwp->wcp", gathered, phases[:, np.arange(a, b) % n_mu])
+
+    in_threads(rays_of_thread, range(min(threads, len(starts))), threads)
     hit = np.nonzero(hits)[0]
     if hit.size:  # direct sunlight reflected where the ray meets the ground
         t_end = t[hit, -1] + 0.5 * dt[hit, -1]
@@ -905,7 +963,8 @@ class _SphericalTransport:
         self.cs = _ray_sun_cosine(mu0, phi_nodes, mus_sub)  # (rays, n_p)
         self.mus_p = np.tile(mus_sub, self.n_phi)
         self.r0, self.t, self.r_t = r0, t, R + h
-        self.chunk = max(1, max_elements // max(1, 2 * n_steps * self.n_p * self.probe.size))  # J and its slope
+        # rays per chunk (J and its slope), each of SOLVER_THREADS threads holding one chunk
+        self.chunk = max(1, max_elements // max(1, SOLVER_THREADS) // max(1, 2 * n_steps * self.n_p * self.probe.size))
         self.hits = np.nonzero(hits)[0]
         t_end = t[self.hits, -1] + 0.5 * dt[self.hits, -1]
         mus_g = (r0[self.hits, None] * self.mus_p[None, :] + t_end[:, None] * self.cs[self.hits]) / R
@@ -924,7 +983,8 @@ class _SphericalTransport:
         src = np.stack([src, _log_slopes(self.mus_nodes, src, axis=2).astype(np.float32)], axis=3)
         out = np.zeros((self.n_rays, self.n_p, n_pr), dtype=np.float32)
         n_sub = self.sub.size
-        for a in range(0, self.n_rays, self.chunk):
+
+        def chunk_of_rays(a):  # rays a..a + chunk, on SOLVER_THREADS threads (each writes its own rays)
             b = min(self.n_rays, a + self.chunk)
             c = b - a
             # the source at every sample's altitude and zenith cosine, every (phi, sun node)
@@ -941,6 +1001,8 @@ class _SphericalTransport:
             got = _sun_interp_cubic(lo[:, 0], hi[:, 0], lo[:, 1], hi[:, 1], dx, f.reshape(-1, 1),
                                     (self.mus_nodes[i + 1] <= 0.0).reshape(-1, 1)).reshape(c, self.n_steps, self.n_p, n_pr)
             out[a:b] = np.einsum("csw,cspw->cpw", self.weight[a:b], got)
+
+        in_threads(chunk_of_rays, range(0, self.n_rays, self.chunk), SOLVER_THREADS)
         if self.hits.size:
             i, f = self.ground_sun
             lgp = lg[:, self.probe]  # (n_mus, P)

@@ -34,9 +34,15 @@ import numpy as np
 
 from skymodel.render.medium import LowRank, march_samples
 from skymodel.render.rays import altitude_along
+from skymodel.render.threads import SOLVER_THREADS, in_threads
 
 #: Angular radius of the sun at 1 AU, radians (IAU nominal radius 695,700 km).
 SUN_ANGULAR_RADIUS_RAD = np.arcsin(695_700.0 / 149_597_870.7)
+
+#: Altitude rows of the table integrated at a time (on :data:`SOLVER_THREADS` threads):
+#: whole, the samples' basis values were ~0.35 GB at ``final`` and their allocation,
+#: not the arithmetic, took most of the table's time.
+_TABLE_ROWS = 2
 
 
 class SunTransmittance:
@@ -59,19 +65,23 @@ class SunTransmittance:
         self.rho_nodes = np.linspace(0.0, big_h, n_altitudes) * (1.0 - 1e-9)
         self.h_nodes = np.sqrt(self.rho_nodes**2 + self.R**2) - self.R
         self.x_nodes = np.linspace(0.0, 1.0, n_x) * (1.0 - 1e-9)
-        hh, xx = np.meshgrid(self.h_nodes, self.x_nodes, indexing="ij")
-        mu = self._mu_from_x(hh, xx)
-        r = self.R + hh
-        p = np.stack([np.zeros_like(r), np.zeros_like(r), r], axis=-1)
-        d = np.stack([np.sqrt(np.clip(1 - mu * mu, 0, None)), np.zeros_like(mu), mu], axis=-1)
-        t_end = self._distance_to_top(r, mu)
-        t, dt = march_samples(p, d, np.zeros_like(r), t_end, n_steps, self.R)
-        h = altitude_along(p, d, t, self.R)
         # integrals of every basis function along every tabulated ray: (n_h, n_x, k_total),
         # the bases of all media stacked (they share the profile's altitude nodes)
         stacked = LowRank(self.media[0].nodes_m, np.concatenate([m.basis for m in self.media], axis=1),
                           np.zeros((1, 1)), self.media[0].layered, self.media[0].top_m)
-        table = np.einsum("hxsk,hxs->hxk", stacked.basis_at(h), dt)
+        table = np.empty((n_altitudes, n_x, stacked.rank))
+
+        def rows(a):  # a few altitude rows at a time: the samples' basis values stay small
+            b = min(n_altitudes, a + _TABLE_ROWS)
+            hh, xx = np.meshgrid(self.h_nodes[a:b], self.x_nodes, indexing="ij")
+            mu = self._mu_from_x(hh, xx)
+            r = self.R + hh
+            p = np.stack([np.zeros_like(r), np.zeros_like(r), r], axis=-1)
+            d = np.stack([np.sqrt(np.clip(1 - mu * mu, 0, None)), np.zeros_like(mu), mu], axis=-1)
+            t, dt = march_samples(p, d, np.zeros_like(r), self._distance_to_top(r, mu), n_steps, self.R)
+            table[a:b] = np.einsum("hxsk,hxs->hxk", stacked.basis_at(altitude_along(p, d, t, self.R)), dt)
+
+        in_threads(rows, range(0, n_altitudes, _TABLE_ROWS), SOLVER_THREADS)
         splits = np.cumsum([m.rank for m in self.media])[:-1]
         self.tables = np.split(table, splits, axis=-1)
 
