@@ -397,10 +397,33 @@ def proof_scenes():
     }
 
 
+_CPU: list = []  # CPU seconds of the last _timed call
+
+
 def _timed(fn):
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     out = fn()
+    _CPU[:] = [time.process_time() - c]
     return out, time.perf_counter() - t
+
+
+def _cpu_plan(scene):
+    """The planner's plan of ``scene`` with the accuracy table's preset wall times replaced
+    by their CPU times: its predictions are CPU seconds, to compare with the builds' CPU
+    seconds (which a shared machine's load changes far less than wall time), or None when
+    the table has no CPU times."""
+    import copy
+
+    from skymodel.planner import ACCURACY_PATH, load_table, plan
+
+    acc = load_table(ACCURACY_PATH)
+    if not acc or not all(v.get("cpu_s") for per in acc.get("presets", {}).values() for v in per.values()):
+        return None
+    acc = copy.deepcopy(acc)
+    for per in acc["presets"].values():
+        for v in per.values():
+            v["time_s"] = v["cpu_s"]
+    return plan(scene, accuracy=acc)
 
 
 def run_proof(write: bool, width: int, repeats: int = REPEATS) -> int:
@@ -432,11 +455,15 @@ def run_proof(write: bool, width: int, repeats: int = REPEATS) -> int:
             return m, m.radiance(dirs)
 
         (m_all, r_all), t_all = _timed(everything)
+        cpu_all = list(_CPU)
         (m_plan, r_plan), t_plan = _timed(planned)
+        cpu_plan = list(_CPU)
         times_all, times_plan = [t_all], [t_plan]
         for _ in range(repeats - 1):  # alternate, so that a change of the machine's load hits both alike
             times_plan.append(_timed(planned)[1])
+            cpu_plan += _CPU
             times_all.append(_timed(everything)[1])
+            cpu_all += _CPU
         ref = Reference(r_all.radiance, dirs, omega, r_all.sun_irradiance, el, wl_all)
         cmp = ref.compare(r_plan.radiance, r_plan.sun_irradiance, el, m_plan.profile.wavelengths_nm)
         from skymodel.planner import visible_bands
@@ -458,6 +485,7 @@ def run_proof(write: bool, width: int, repeats: int = REPEATS) -> int:
                "median_everything_s": round(float(np.median(times_all)), 3),
                "median_planned_s": round(float(np.median(times_plan)), 3),
                "time_basis": p.time_basis,
+               "cpu_everything_s": [round(t, 3) for t in cpu_all], "cpu_planned_s": [round(t, 3) for t in cpu_plan],
                "times_everything_s": [round(t, 3) for t in times_all],
                "times_planned_s": [round(t, 3) for t in times_plan],
                "orders_everything": int(m_all.field.orders), "orders_planned": int(m_plan.field.orders),
@@ -478,6 +506,12 @@ def run_proof(write: bool, width: int, repeats: int = REPEATS) -> int:
         out["time_saving"] = round(1.0 - out["time_planned_s"] / out["time_everything_s"], 3)
         out["ratio_everything"] = round(out["median_everything_s"] / max(out["predicted_everything_s"], 1e-9), 3)
         out["ratio_planned"] = round(out["median_planned_s"] / max(out["predicted_planned_s"], 1e-9), 3)
+        pc = _cpu_plan(scene)
+        if pc is not None:  # the same prediction in CPU seconds, against the builds' CPU seconds
+            out["predicted_cpu_everything_s"] = round(pc.predicted_environment_s(width, everything_on=True), 3)
+            out["predicted_cpu_planned_s"] = round(pc.predicted_environment_s(width), 3)
+            out["ratio_cpu_everything"] = round(float(np.median(cpu_all)) / out["predicted_cpu_everything_s"], 3)
+            out["ratio_cpu_planned"] = round(float(np.median(cpu_plan)) / out["predicted_cpu_planned_s"], 3)
         out["load_average_1min"] = round(os.getloadavg()[0], 2)
         results[name] = out
         print(f"{name}: everything {out['time_everything_s']:.2f} s, planned {out['time_planned_s']:.2f} s "
@@ -593,16 +627,21 @@ def write_doc(meta):
                   "time), less the pixels of the render that time was measured on, plus this size's "
                   "(`environment_build_time`). Measured: the median of the alternated runs.", "",
                   "| scene | everything on: predicted (s) | measured (s) | measured / predicted | planned: predicted (s) "
-                  "| measured (s) | measured / predicted | load (1 min) |",
-                  "|---|---|---|---|---|---|---|---|"]
+                  "| measured (s) | measured / predicted | CPU s measured / predicted: everything, planned | "
+                  "load (1 min) |",
+                  "|---|---|---|---|---|---|---|---|---|"]
         for name, r in timed:
+            cpu = (f"{r['ratio_cpu_everything']:.2f}, {r['ratio_cpu_planned']:.2f}" if "ratio_cpu_everything" in r
+                   else "-")
             lines.append(f"| {name} | {r['predicted_everything_s']:.1f} | {r['median_everything_s']:.1f} | "
                          f"{r['ratio_everything']:.2f} | {r['predicted_planned_s']:.1f} | {r['median_planned_s']:.1f} | "
-                         f"{r['ratio_planned']:.2f} | {r['load_average_1min']:.1f} |")
+                         f"{r['ratio_planned']:.2f} | {cpu} | {r['load_average_1min']:.1f} |")
         lines += ["", f"Measured / predicted {min(ratios):.2f}-{max(ratios):.2f}: "
                   + ("every case within the factor of 2." if within else "not every case within the factor of 2.")
-                  + " The time scale is the accuracy table's `final` preset time, measured at its own load; a "
-                  "machine more (or less) loaded than then scales every measured time, not the prediction."]
+                  + " The time scale is the accuracy table's preset time, measured at its own load (its rows "
+                  "say which): a machine more (or less) loaded than then scales every measured time, not the "
+                  "prediction. The CPU column makes the same prediction from the table's CPU seconds "
+                  "(`cpu_s`) and compares it with the builds' CPU seconds, which the load changes far less."]
     lines += ["", "Per band and for the light (measured error of the planned build):", "",
               "| scene | ground | horizon (0-10°) | low (10-30°) | high (30-90°) | light dE2000 | light illuminance |",
               "|---|---|---|---|---|---|---|"]

@@ -312,8 +312,15 @@ def test_a_preset_refresh_keeps_every_other_row_and_says_when_each_was_measured(
     old["date"] = "2026-01-03T00:00:00Z"
     new = dict(copy.deepcopy(quick), rows=[dict(r, time_s=0.5, date="2026-02-01T00:00:00Z")
                                            for r in quick["rows"] if r["knob"] == "preset"],
-               command="skymodel bench accuracy --quick --knobs preset", total_s=1.0, date="2026-02-01T00:00:00Z")
+               command="skymodel bench accuracy --quick --knobs preset", total_s=1.0, date="2026-02-01T00:00:00Z",
+               atmosphere=dict(quick["atmosphere"], aerosol_model="another"))
     merged = accuracy.merge_results(old, new)
+    # the rows kept are the old atmosphere's; the part measured in another says so
+    assert merged["atmosphere"] == old["atmosphere"]
+    assert merged["partial_runs"][-1]["atmosphere"]["aerosol_model"] == "another"
+    from skymodel.validation.accuracy_report import _run_atmosphere
+
+    assert "aerosol model another" in _run_atmosphere(merged["partial_runs"][-1])
     by_knob = {}
     for r in merged["rows"]:
         by_knob.setdefault(r["knob"], set()).add(r["date"])

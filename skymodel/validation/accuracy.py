@@ -761,13 +761,18 @@ def merge_results(old: dict, new: dict) -> dict:
     for name, per in new.get("presets", {}).items():
         presets.setdefault(name, {}).update(per)
     out["presets"] = presets
-    for key in ("machine", "date", "load_avg_end", "reference_settings", "atmosphere"):
+    for key in ("machine", "date", "load_avg_end", "reference_settings"):
         out[key] = new[key]
+    # the rows kept were measured in the old table's atmosphere: it stays the table's, and a
+    # part measured in another one says so in its partial_runs entry
+    out["atmosphere"] = old.get("atmosphere", new["atmosphere"])
     if any(r["knob"] not in ("preset", "mc_samples") for r in new["rows"]):
         out["baseline_settings"] = new["baseline_settings"]
     out["total_s"] = old.get("total_s", 0.0) + new["total_s"]
-    out["partial_runs"] = list(old.get("partial_runs", [])) + [{"command": new["command"], "date": new["date"],
-                                                               "total_s": new["total_s"]}]
+    run = {"command": new["command"], "date": new["date"], "total_s": new["total_s"]}
+    if new.get("atmosphere") != out["atmosphere"]:
+        run["atmosphere"] = new["atmosphere"]
+    out["partial_runs"] = list(old.get("partial_runs", [])) + [run]
     out["command"] = old["command"]
     return out
 
