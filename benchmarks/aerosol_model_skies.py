@@ -4,8 +4,9 @@
 
 Each panel is ``skymodel render --location rural --month 6 --sun-elevation 5 --sun-azimuth 180
 --camera fisheye --quality preview --aerosol-model M --aerosol T`` (the type at its table amount,
-stratospheric background, grass), tone-mapped by the CLI's PNG preview (automatic exposure per
-image: the panels compare colour and the shape of the glow, not absolute brightness). The title
+stratospheric background, grass), tone-mapped by the CLI's PNG preview (each image at its own
+display exposure, skymodel.render.exposure: the panels compare colour and the shape of the glow,
+not absolute brightness). The title
 gives the type's AOD550 and single-scattering albedo at 550 nm in that model. Needs matplotlib
 (the ``plots`` extra). About 20 s a panel on 2 cores.
 """

@@ -1,6 +1,6 @@
 """The add-on's exposure at a low sun: display brightness and colour of the sky, before
 (incident-light rule alone) and after (the incident rule capped by the sky meter,
-:func:`skymodel.render.environment.display_exposure`).
+:func:`skymodel.render.exposure.display_exposure`).
 
     .venv/bin/python benchmarks/bench_exposure.py [--elevations 30,5,0,-2,-4,-8] \\
         [--image docs/img/exposure_before_after.png]

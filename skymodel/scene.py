@@ -236,9 +236,9 @@ _ALL = [
        minimum=1, maximum=100_000, integer=True, flag="--max-frames"),
     _P("frame_rate", "fps", "frames per second of the sequence's video", default=12, minimum=1, maximum=120,
        integer=True, flag="--fps"),
-    _P("exposure_curve", "", "exposure of a sequence's previews: follow = each frame's log-average luminance "
-       "smoothed over 3 frames (a day: dusk stays readable), fixed = one exposure for every frame (a year at one "
-       "sun elevation: the colours compare)", default="follow", choices=("follow", "fixed"),
+    _P("exposure_curve", "", "exposure of a sequence's previews: follow = each frame's own display exposure "
+       "(skymodel.render.exposure, the add-on's: the night darker than the day), fixed = one exposure for every "
+       "frame (a year at one sun elevation: the colours compare)", default="follow", choices=("follow", "fixed"),
        flag="--exposure-curve"),
     _P("dusk_or_dawn", "", "which crossing of --sun-elevation a sequence of days uses", default="dusk",
        choices=("dusk", "dawn"), flag="--crossing"),
@@ -301,8 +301,9 @@ _ALL = [
        flag="--wavelength-step"),
     _P("volume_layers", "", "nested atmosphere volumes of Blender's Volumetric mode", default=8, minimum=1,
        maximum=24, integer=True, soft_maximum=16),
-    _P("exposure_ev", "EV", "exposure of the PNG preview in stops added to the automatic exposure", minimum=-64.0,
-       maximum=64.0, flag="--exposure", default_note="0 (the automatic exposure)"),
+    _P("exposure_ev", "EV", "exposure of the PNG preview in stops added to the display exposure "
+       "(skymodel.render.exposure)", minimum=-64.0, maximum=64.0, flag="--exposure",
+       default_note="0 (the display exposure)"),
     _P("max_memory", "GiB", "largest estimated peak memory a render may need (skymodel.render.memory: the "
        "quality's tables, the marching bands and the image); a render over it is refused before it starts",
        default=4.0, minimum=0.0, maximum=4096.0, exclusive_minimum=True, flag="--max-memory"),

@@ -9,10 +9,11 @@ import pytest
 from skymodel import Atmosphere
 from skymodel.errors import SkymodelInputError
 from skymodel.render.cameras import make_camera
-from skymodel.render.marcher import SkyMarcher, solve_sky
+from skymodel.render.marcher import SkyMarcher, optics_key, solve_sky
 from skymodel.render.quality import quality_settings
 from skymodel.render.sky import render_sky, render_sky_reduced
-from skymodel.render.skyview import SkyViewTable, rgb_reduction, xyz_reduction
+from skymodel.render.skyview import (CAP_EXACT_DEG, CAP_RADIAL, SkyViewTable, cap_radial_nodes, rgb_reduction,
+                                     xyz_reduction)
 
 SETTINGS = replace(quality_settings("preview"), table_altitudes=12, table_mu=12, table_phi=6, table_mus=12,
                    table_steps=16, sun_table_altitudes=32, sun_table_x=48, sun_table_steps=48, max_orders=4,
@@ -99,3 +100,16 @@ def test_method_is_checked(skies):
     cam = make_camera("equirectangular", 16, n_wavelengths=3)
     with pytest.raises(SkymodelInputError, match="method"):
         render_sky_reduced(prof, cam, 30.0, xyz_reduction(WL), 3, quality=SETTINGS, method="fast")
+
+
+def test_cap_keeps_its_log_spacing_when_wider(skies):
+    """The cap's radial nodes grow with the log of its reach (final's 12-degree cap: 41, the
+    8-degree one's spacing), and a table built for a 12-degree cap marches that many rings."""
+    assert cap_radial_nodes(8.0) == CAP_RADIAL and cap_radial_nodes(12.0) == 41
+    for deg in (8.0, 12.0, 20.0):
+        step = np.log(deg / CAP_EXACT_DEG) / (cap_radial_nodes(deg) - 1)
+        assert abs(step / (np.log(4.0) / (CAP_RADIAL - 1)) - 1.0) < 0.03
+    prof, sol = skies["rural"]
+    s12 = replace(SETTINGS, sun_exact_deg=12.0)
+    m = SkyMarcher(prof, 30.0, 180.0, 0.0, s12, solution=replace(sol, settings=s12, key=optics_key(prof, s12)))
+    assert SkyViewTable(m, xyz_reduction(WL)).cap_u.size == 41

@@ -88,7 +88,9 @@ def test_days_at_one_sun_elevation_solve_once_per_ozone_column(tmp_path):
     assert [f["time_utc"][:10] for f in frames] == ["2026-01-15", "2026-02-15", "2026-03-15"]
     assert all(abs(f["sun_elevation_deg"] + 4.0) < 0.01 for f in frames)
     assert len({round(f["ozone_du"], 6) for f in frames}) == 3 and record["solves"] == 3
-    assert len({f["preview_average_luminance"] for f in frames}) == 1  # one exposure for the year
+    assert len({f["preview_exposure_ev"] for f in frames}) == 1  # one exposure for the year
+    mean = np.mean([f["exposure"]["exposure"] for f in frames])  # the mean of the frames' display exposures
+    assert frames[0]["preview_exposure_ev"] == pytest.approx(mean)
     assert all(0.15 < f["zenith_xy"][0] < 0.35 and 0.15 < f["zenith_xy"][1] < 0.35 for f in frames)  # blue
 
 
@@ -184,9 +186,8 @@ def test_parse_every_and_the_dusk_crossing():
 
 
 def test_exposure_curve_and_contact_sheet():
-    lum = np.array([100.0, 10.0, 1.0, 0.1])
-    follow = timelapse.exposure_curve(lum, "follow")
-    assert np.allclose(np.log10(follow), [(2 + 2 + 1) / 3, 1, 0, (-1 - 1 + 0) / 3])
-    assert np.allclose(timelapse.exposure_curve(lum, "fixed"), np.sqrt(10.0))
+    ev = np.array([-4.0, -1.0, 6.0, 11.0])
+    assert np.array_equal(timelapse.exposure_curve(ev, "follow"), ev)  # each frame its own: the add-on's
+    assert np.allclose(timelapse.exposure_curve(ev, "fixed"), 3.0)
     sheet = timelapse.contact_sheet([np.full((8, 16, 3), k, np.uint8) for k in range(5)])
     assert sheet.dtype == np.uint8 and sheet.shape[1] > sheet.shape[0]

@@ -77,8 +77,9 @@ def cmd_render(args) -> int:
     night = night_module.night_active(mode, sun.time_utc)
     sunlit = night_module.sunlit(sun.elevation_deg)
     if not (sunlit or night):
-        raise SkymodelInputError("time_utc", sun.time_utc, f"a time when the sun is above "
-                                 f"{night_module.lowest_elevation_deg():g} degrees, or --night auto (the night's light)")
+        raise SkymodelInputError("time_utc", sun.time_utc,
+                                 f"a time when the sun is above {night_module.lowest_elevation_deg():g} degrees, "
+                                 f"or --night auto (the night's light)")
     quality = scene.check("quality", args.quality)
     settings = quality_settings(quality)
     wl = default_wavelengths(scene.check("wavelength_step", args.wavelength_step))
@@ -106,19 +107,20 @@ def cmd_render(args) -> int:
     info = {}
     if args.spectral:
         radiance, xyz = np.zeros(camera.shape + (wl.size,)), None
+        sun_irradiance = np.zeros(wl.size)
         if sunlit:
             img = render_sky(profile, camera, sun.elevation_deg, sun.azimuth_deg, args.observer_altitude, settings,
                              include_sun=not args.no_sun, progress=prog.order, max_memory_gib=limit_gib)
-            radiance, info = img.radiance, img.info
+            radiance, info, sun_irradiance = img.radiance, img.info, img.sun_irradiance
     else:  # straight to CIE XYZ (the sky-view table for large images): no spectral cube
         # float32 (each band computed in float64): the EXR is float32, and the image half the memory
         xyz, radiance = np.zeros(camera.shape + (3,), dtype=REDUCED_DTYPE), None
+        sun_irradiance = np.zeros(wl.size)
         if sunlit:
-            xyz, _, info = render_sky_reduced(profile, camera, sun.elevation_deg, xyz_reduction(wl), 3,
-                                              sun.azimuth_deg, args.observer_altitude, settings,
-                                              band_pixels=REDUCED_BAND_PIXELS, progress=prog.order,
-                                              include_sun=not args.no_sun, solutions=None if night else False,
-                                              max_memory_gib=limit_gib, dtype=REDUCED_DTYPE)
+            xyz, sun_irradiance, info = render_sky_reduced(
+                profile, camera, sun.elevation_deg, xyz_reduction(wl), 3, sun.azimuth_deg, args.observer_altitude,
+                settings, band_pixels=REDUCED_BAND_PIXELS, progress=prog.order, include_sun=not args.no_sun,
+                solutions=None if night else False, max_memory_gib=limit_gib, dtype=REDUCED_DTYPE)
     if not args.quiet:
         print(file=sys.stderr)
     if sunlit:
@@ -127,7 +129,7 @@ def cmd_render(args) -> int:
     else:
         prog.stage(f"no sunlit sky: the sun at {sun.elevation_deg:.1f} deg is below "
                    f"{night_module.lowest_elevation_deg():g}")
-    night_meta, exposure_night = None, 0.0
+    night_meta, moon_h = None, 0.0
     if night:
         add, ninfo = night_module.night_light(profile, camera, atm.latitude, atm.longitude, sun.time_utc,
                                               None if args.spectral else xyz_reduction(wl).matrix,
@@ -139,27 +141,35 @@ def cmd_render(args) -> int:
         else:
             xyz += add
         night_meta = ninfo.as_dict()
+        moon_h = ninfo.moon_horizontal_illuminance_y() if args.no_sun else 0.0
         prog.stage(f"night: moon at {ninfo.moon_elevation_deg:.1f} deg (phase angle {ninfo.moon_phase_angle_deg:.0f}, "
                    f"{ninfo.moon_illuminance_lux:.3g} lux facing it), moonlit sky "
                    f"{'marched' if ninfo.moonlit_sky else 'not marched'}, {ninfo.stars_drawn} stars, "
                    f"{ninfo.timings['total_s']:.1f}s")
-        # the preview: the night shown darker than the day (night_module.night_exposure_offset_ev)
+    # the PNG's exposure: the one display rule (skymodel.render.exposure), as the add-on's and the
+    # time-lapse's; the sun and the moon are counted as light on the ground whether drawn or not
+    meter = None
+    if not args.no_png:
         from skymodel.colorimetry import spectral_to_xyz
+        from skymodel.render.exposure import display_exposure
 
         y = (spectral_to_xyz(radiance, wl) if args.spectral else xyz)[..., 1]
-        exposure_night = night_module.night_exposure_offset_ev(image_io.auto_exposure_luminance(
-            np.repeat(y[..., None], 3, axis=-1), camera.valid_mask()))
-    if exposure_night and not args.no_png:
-        prog.stage(f"night preview: {exposure_night:+.2f} EV below the automatic exposure")
-        exposure = (exposure or 0.0) + exposure_night
+        sun_y = float(spectral_to_xyz(sun_irradiance, wl)[1]) if args.no_sun else 0.0
+        meter = display_exposure(y, camera, sun_y, sun.elevation_deg, moon_h)
+        exposure = meter["exposure"] + (exposure or 0.0)
+        prog.stage(f"exposure {meter['exposure']:+.2f} EV (incident {meter['exposure_incident']:+.2f}, "
+                   f"sky {meter['exposure_sky']:+.2f})"
+                   + (f", plus --exposure {args.exposure:+.2f}" if args.exposure else ""))
     written = image_io.save_outputs(out=args.out, png=png, spectral=args.spectral, radiance=radiance, xyz=xyz,
                                     wavelengths=wl, camera=camera, exposure_ev=exposure,
+                                    average_luminance=None if meter is None else image_io.TONEMAP_KEY,
                                     colour_space="xyz" if args.xyz else "rec709",
                                     metadata={"atmosphere": profile.metadata, "sun_elevation_deg": sun.elevation_deg,
                                               "sun_azimuth_deg": sun.azimuth_deg, "time_utc": sun.time_utc,
                                               "time_local": sun.time_local, "timezone": sun.timezone,
                                               "observer_altitude_m": args.observer_altitude, "quality": quality,
-                                              **({"night": night_meta} if night_meta else {})})
+                                              **({"night": night_meta} if night_meta else {}),
+                                              **({"exposure": meter} if meter else {})})
     for path in written.values():
         prog.stage(f"wrote {path}")
     return 0

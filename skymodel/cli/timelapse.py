@@ -22,14 +22,15 @@ Output in the ``--out`` folder:
   written atomically as it is rendered;
 * ``frames.json``: the sequence and every finished frame (UTC and local time, zone, sun
   elevation/azimuth, Earth-sun distance, day of the year, ozone column, the zenith's CIE xy
-  chromaticity and luminance, whether the solve was reused, the preview exposure),
+  chromaticity and luminance, whether the solve was reused, the exposure meters and the
+  preview's exposure),
   rewritten atomically after each frame;
 * once every frame is rendered: ``frame_0001.png`` ... previews at one exposure curve for
-  the whole sequence (``--exposure-curve``: ``follow`` keys each frame to its log-average
-  luminance smoothed over 3 frames, so nothing flickers and dusk stays readable, and below
-  a log-average of 3 cd m^-2 opens up by only 3/4 of the stops the light falls, so the night
-  is visible but darker than the day (:func:`skymodel.render.night.night_exposure_offset_ev`);
-  ``fixed`` uses one exposure, the geometric mean of the frames' log-averages, so colours
+  the whole sequence (``--exposure-curve``: ``follow`` gives each frame the exposure of the
+  one display rule, :mod:`skymodel.render.exposure`, the Blender add-on's for the same
+  instant: continuous in the light, so nothing flickers, dusk darker than noon and the night
+  darker still, a moonlit night brighter than a moonless one; ``fixed`` uses one exposure,
+  the mean of the frames' exposures, so colours
   and brightness compare from frame to frame), ``contact_sheet.png`` and a video
   (``timelapse.mp4`` through ``imageio-ffmpeg`` when installed, else an animated
   ``timelapse.webp`` or ``timelapse.gif`` through Pillow; none without either).
@@ -192,18 +193,15 @@ def _json_default(o):
 # ----------------------------------------------------------------------------- exposure
 
 
-def exposure_curve(log_averages, rule: str) -> np.ndarray:
-    """The luminance each frame's preview keys to middle grey (``tonemap``'s
-    ``average_luminance``), from the frames' log-average luminances: ``follow``: the
-    log of each smoothed over the frame and its two neighbours (one at the ends);
-    ``fixed``: their geometric mean for every frame."""
-    logs = np.log(np.maximum(np.asarray(log_averages, dtype=float), 1e-30))
+def exposure_curve(exposures_ev, rule: str) -> np.ndarray:
+    """The exposure [stops] of each frame's preview from the frames' own exposures (the
+    display rule of :mod:`skymodel.render.exposure`): ``follow``: each frame its own (the
+    add-on's exposure for that instant; continuous in the light, so no flicker);
+    ``fixed``: their mean for every frame."""
+    ev = np.asarray(exposures_ev, dtype=float)
     if scene.check("exposure_curve", rule) == "fixed":
-        return np.full(logs.size, math.exp(float(logs.mean())))
-    if logs.size < 3:
-        return np.exp(logs)
-    padded = np.concatenate([logs[:1], logs, logs[-1:]])
-    return np.exp((padded[:-2] + padded[1:-1] + padded[2:]) / 3.0)
+        return np.full(ev.size, float(ev.mean()) if ev.size else 0.0)
+    return ev.copy()
 
 
 # ----------------------------------------------------------------------------- output
@@ -301,6 +299,7 @@ def cmd_timelapse(args) -> int:
     from skymodel.render.cameras import make_camera
     from skymodel.render.quality import quality_settings
     from skymodel.render import night as night_module
+    from skymodel.render.exposure import display_exposure
     from skymodel.render.sequence import SolutionCache, render_frame
     from skymodel.wavelengths import default_wavelengths
 
@@ -350,16 +349,17 @@ def cmd_timelapse(args) -> int:
         store = np.lib.format.open_memmap(store_path, mode="w+", dtype=np.float32,
                                           shape=(len(frames), camera.height, camera.width, 3))
         directions, valid = camera.directions()
-        log_avg = []
+        meters = []
         for k, sun in enumerate(frames):
             t0 = time.perf_counter()
             atm = atmosphere_of(sun)
             profile = profile_for_sun(atm, wl, sun)
             solves = cache.stats["solves"]
-            radiance = np.zeros(camera.shape + (wl.size,))
+            radiance, sun_irradiance = np.zeros(camera.shape + (wl.size,)), np.zeros(wl.size)
             if night_module.sunlit(sun.elevation_deg):  # below the bound the sunlit sky is zero
-                radiance = render_frame(profile, camera, sun.elevation_deg, sun.azimuth_deg, observer, settings,
-                                        include_sun=not args.no_sun, cache=cache).radiance
+                image = render_frame(profile, camera, sun.elevation_deg, sun.azimuth_deg, observer, settings,
+                                     include_sun=not args.no_sun, cache=cache)
+                radiance, sun_irradiance = image.radiance, image.sun_irradiance
             night_info = None
             if night_module.night_active(args.night, sun.time_utc):
                 add, night_info = night_module.night_light(
@@ -385,27 +385,26 @@ def cmd_timelapse(args) -> int:
                                                        "integrals of W m^-2 sr^-1 nm^-1)",
                                            "skymodel": json.dumps(header, default=_json_default)})
             store[k] = rgb
-            log_avg.append(image_io.auto_exposure_luminance(rgb, valid))
-            record["frames"].append({"exr": f"{name}.exr", "png": None, **meta, "log_average_luminance": log_avg[-1],
+            # the frame's exposure: the one display rule (the add-on's for the same instant); the sun
+            # and the moon count as light on the ground whether their discs are drawn or not
+            sun_y = float(spectral_to_xyz(sun_irradiance, wl)[1]) if args.no_sun else 0.0
+            moon_y = night_info.moon_horizontal_illuminance_y() if (night_info and args.no_sun) else 0.0
+            meters.append(display_exposure(xyz[..., 1], camera, sun_y, sun.elevation_deg, moon_y))
+            record["frames"].append({"exr": f"{name}.exr", "png": None, **meta, "exposure": meters[-1],
                                      **zenith_colour(xyz, directions, valid)})
             _write_json_atomic(folder / "frames.json", record)
             prog.frame(k + 1, f"{sun.time_local} sun {sun.elevation_deg:.2f} deg "
                               f"({'solve reused' if meta['solve_reused'] else 'solved'}, {meta['render_s']:.1f} s)")
         # --- previews at one exposure curve, the contact sheet and the video
-        curve = exposure_curve(log_avg, rule)
-        # follow: the night shown darker than the day (night_module.night_exposure_offset_ev of
-        # the smoothed curve: continuous, so no flicker); fixed: one exposure, no offset
-        night_ev = [night_module.night_exposure_offset_ev(c) if rule == "follow" else 0.0 for c in curve]
+        curve = exposure_curve([m["exposure"] for m in meters], rule) + (args.exposure or 0.0)
         previews = []
         for k, entry in enumerate(record["frames"]):
-            rgb8 = image_io.tonemap(np.asarray(store[k], dtype=float), args.exposure, valid=valid,
-                                    average_luminance=float(curve[k] * 2.0 ** -night_ev[k]))
+            rgb8 = image_io.tonemap(np.asarray(store[k], dtype=float), float(curve[k]), valid=valid,
+                                    average_luminance=image_io.TONEMAP_KEY)
             png = entry["exr"][:-4] + ".png"
             image_io.write_png(folder / png, rgb8, text={"Software": "skymodel", "Comment": entry["time_utc"]})
             entry["png"] = png
-            entry["preview_average_luminance"] = float(curve[k])
-            entry["preview_night_ev"] = float(night_ev[k])
-            entry["preview_exposure_ev"] = math.log2(0.18 / float(curve[k])) + night_ev[k] + (args.exposure or 0.0)
+            entry["preview_exposure_ev"] = float(curve[k])
             previews.append(rgb8)
         image_io.write_png(folder / "contact_sheet.png", contact_sheet(previews), text={"Software": "skymodel"})
         record["contact_sheet"] = "contact_sheet.png"

@@ -22,26 +22,13 @@ Orientation
     increasing to the right (:func:`environment_camera`): where Blender's Environment
     Texture puts the image centre, so no texture rotation is needed there.
 
-Exposure (incident light, capped by a key on the sky)
-    Two meters, the darker wins (:func:`display_exposure`):
-
-    * the incident-light rule ``log2(pi / E_h)``, ``E_h`` the horizontal illuminance at the
-      observer in the scale above (direct sun ``E_Y sin(elevation)`` plus the sky's diffuse
-      ``sum(Y cos(zenith) dOmega)`` over the upper hemisphere, sun disc excluded): a white
-      horizontal Lambertian surface displays at scene value 1.0, an 18 % grey card at 0.18.
-      Right in daylight; at a low sun the sky becomes as bright as the ground it lights
-      (pi L_sky / E_h goes from 0.2 at sun 30 degrees to 1.4-2 at and below the horizon),
-      so a white plate at 1.0 washes the sunset and twilight sky to near white;
-    * a reflected-light meter on the sky with a key that falls with the light level: the
-      sky's log-average luminance ``L_sky`` (solid-angle weighted, above the horizon) is
-      shown at ``SKY_KEY_SCALE * key(L_sky)``, with the key of Krawczyk, Myszkowski &
-      Seidel (2005), ``key = 1.03 - 2 / (2 + log10(L + 1))``, L in cd m^-2 (their automatic
-      key for the log-average luminance: a bright scene is shown brighter than a dim one,
-      as a dusk photograph is darker than a noon one). :data:`SKY_KEY_SCALE` puts the
-      clear sky at sun 30 degrees (rural, June) where the incident rule puts it, so
-      daylight keeps the incident rule's look and only the low sun is darkened.
-
-    A user offset is added by the renderer (the Blender add-on's Exposure Offset).
+Exposure
+    :func:`render_environment` records the exposure of the one display rule of
+    :mod:`skymodel.render.exposure` (the darker of the incident-light rule and the sky meter,
+    whose key falls with the light, day and night; the moon lamp's light counted in the
+    incident meter), the same rule ``skymodel render`` and ``skymodel timelapse`` use for
+    their PNGs. Its names are re-exported here. A user offset is added by the renderer (the
+    Blender add-on's Exposure Offset).
 
 Cache
     :func:`render_environment` writes ``sky-<key>.exr`` and ``sky-<key>.json`` (the lamp and
@@ -72,19 +59,21 @@ from skymodel import sun as sun_module
 from skymodel.render import image_io
 from skymodel.render import sky as render_sky
 from skymodel.render.cameras import make_camera
+from skymodel.render.exposure import (  # noqa: F401  (the exposure rule, re-exported for the add-on)
+    CANDELA_PER_UNIT, LUMA_709, SKY_KEY_SCALE, display_exposure, exposure_from_illuminance, exposure_from_sky,
+    horizontal_illuminance, sky_key, sky_log_average)
 from skymodel.render.memory import check_render_memory
 from skymodel.render.quality import QUALITIES
 from skymodel.render.skyview import rgb_reduction
 from skymodel.wavelengths import default_wavelengths
 
-#: Bump when the meaning of a cached file changes (2: the exposure of display_exposure).
-CACHE_FORMAT = 2
+#: Bump when the meaning of a cached file changes (2: the exposure of display_exposure; 3: its
+#: night branch, skymodel.render.exposure).
+CACHE_FORMAT = 3
 #: Image width by quality (height = width / 2): the quality registry's.
 IMAGE_WIDTH = {name: q.environment_width_px for name, q in QUALITIES.items()}
 #: Wavelength step (nm) of the spectral render by quality: the quality registry's.
 WAVELENGTH_STEP_NM = {name: q.wavelength_step_nm for name, q in QUALITIES.items()}
-#: Rec.709 luminance weights (Blender's scene-linear luminance).
-LUMA_709 = np.array([0.2126, 0.7152, 0.0722])
 #: Azimuth (degrees clockwise from north) at the centre of the image: east, +X.
 CENTER_AZIMUTH_DEG = 90.0
 #: The sky model rendered by this module's own marcher; others come through ``model_radiance``.
@@ -125,83 +114,6 @@ def sun_lamp(irradiance, wavelengths_nm) -> tuple[float, tuple]:
     if not y > 0.0:
         return 0.0, (1.0, 1.0, 1.0)
     return y, tuple(float(c) for c in rgb / y)
-
-
-def horizontal_illuminance(rgb_image, camera, sun_strength: float, sun_elevation_deg: float) -> float:
-    """E_h: direct sun on a horizontal plane plus the sky's diffuse part (upper hemisphere)."""
-    dirs, valid = camera.directions()
-    omega = camera.pixel_solid_angles()
-    y = np.asarray(rgb_image, float) @ LUMA_709
-    cos_z = dirs[..., 2]
-    up = valid & (cos_z > 0)
-    diffuse = float(np.sum(np.where(up, y * cos_z * omega, 0.0)))
-    return diffuse + sun_strength * max(math.sin(math.radians(sun_elevation_deg)), 0.0)
-
-
-def exposure_from_illuminance(e_h: float) -> float:
-    """Exposure (stops) of the incident-light rule: ``log2(pi / E_h)``, in [-32, 32]."""
-    if not e_h > 0.0 or not math.isfinite(e_h):
-        return 0.0
-    return float(min(max(math.log2(math.pi / e_h), -32.0), 32.0))
-
-
-#: One unit of the colour scale in cd m^-2 (Y = 1 <=> 683 cd m^-2).
-CANDELA_PER_UNIT = 683.0
-#: Scene value at which the sky's log-average luminance is shown, per unit of key
-#: (:func:`sky_key`). The clear rural June sky at sun 30 degrees (log-average 4.55 units,
-#: key 0.666) is shown at 0.172 by the incident rule and at 0.28 * 0.666 = 0.186 by the sky
-#: meter, so the incident rule still sets the daylight exposure there (and above); the sky
-#: meter takes over between sun 30 and 15 degrees and shows the sky at sun 0 degrees at
-#: 0.28 * 0.59 = 0.166, no brighter than at 30 (measured figures in docs/blender.md).
-SKY_KEY_SCALE = 0.28
-
-
-def sky_key(log_average_y: float) -> float:
-    """Key value of Krawczyk, Myszkowski & Seidel (2005) for a log-average luminance in the
-    colour scale's units: ``1.03 - 2 / (2 + log10(683 L + 1))`` (0.16 at 1 cd m^-2, 0.67 at
-    3000 cd m^-2), floored at 0.02.
-
-    References
-    ----------
-    G. Krawczyk, K. Myszkowski, H.-P. Seidel, "Lightness perception in tone reproduction
-    for high dynamic range images", Computer Graphics Forum 24(3), 2005, eq. 11.
-    """
-    lum = max(float(log_average_y), 0.0) * CANDELA_PER_UNIT
-    return max(1.03 - 2.0 / (2.0 + math.log10(lum + 1.0)), 0.02)
-
-
-def sky_log_average(rgb_image, camera) -> float:
-    """Solid-angle weighted log-average luminance of the sky above the horizon (units of the
-    colour scale; 0 when there is none)."""
-    dirs, valid = camera.directions()
-    omega = camera.pixel_solid_angles()
-    y = np.asarray(rgb_image, float) @ LUMA_709
-    up = valid & (dirs[..., 2] > 0) & (y > 0)
-    if not np.any(up):
-        return 0.0
-    w = omega[up]
-    return float(np.exp(np.sum(w * np.log(y[up])) / np.sum(w)))
-
-
-def exposure_from_sky(log_average_y: float) -> float:
-    """Exposure (stops) of the sky meter: shows ``log_average_y`` at ``SKY_KEY_SCALE * key``."""
-    if not log_average_y > 0.0 or not math.isfinite(log_average_y):
-        return 32.0
-    return float(min(max(math.log2(SKY_KEY_SCALE * sky_key(log_average_y) / log_average_y), -32.0), 32.0))
-
-
-def display_exposure(rgb_image, camera, sun_strength: float, sun_elevation_deg: float,
-                     extra_horizontal_illuminance: float = 0.0) -> dict:
-    """The exposure of the module doc: the darker of the incident-light rule and the sky
-    meter. ``extra_horizontal_illuminance`` [colour-scale units]: light on the horizontal
-    plane from a lamp not in the image (the moon lamp's). Returns ``{"exposure",
-    "exposure_incident", "exposure_sky", "horizontal_illuminance_Y", "sky_log_average_Y"}``
-    (stops and colour-scale units)."""
-    e_h = horizontal_illuminance(rgb_image, camera, sun_strength, sun_elevation_deg) + float(extra_horizontal_illuminance)
-    l_sky = sky_log_average(rgb_image, camera)
-    incident, sky = exposure_from_illuminance(e_h), exposure_from_sky(l_sky)
-    return {"exposure": min(incident, sky), "exposure_incident": incident, "exposure_sky": sky,
-            "horizontal_illuminance_Y": e_h, "sky_log_average_Y": l_sky}
 
 
 # --------------------------------------------------------------------------- inputs
@@ -582,7 +494,7 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
     moon_h = 0.0
     if night_on and not include_sun:  # the moon lamp lights the scene as the sun lamp does
         moon_h = moon.strength * max(math.sin(math.radians(moon.elevation_deg)), 0.0)
-    meter = display_exposure(rgb, cam, strength, sun_elevation_deg, moon_h)
+    meter = display_exposure(rgb, cam, 0.0 if include_sun else strength, sun_elevation_deg, moon_h)  # disc: in rgb
     if not np.all(np.isfinite(rgb)):
         raise FloatingPointError("sky image: non-finite values")
     luma = rgb @ LUMA_709

@@ -671,7 +671,8 @@ _EXR_SPACES = ("rec709", "acescg", "xyz")
 
 
 def save_outputs(out=None, png=None, spectral=None, *, radiance=None, wavelengths, camera, exposure_ev=None,
-                 colour_space="rec709", half=False, compression="zip", metadata=None, xyz=None):
+                 colour_space="rec709", half=False, compression="zip", metadata=None, xyz=None,
+                 average_luminance=None):
     """Write the outputs of a render: any of ``out`` (``.exr``), ``png`` (``.png``) and
     ``spectral`` (``.npz``).
 
@@ -681,7 +682,9 @@ def save_outputs(out=None, png=None, spectral=None, *, radiance=None, wavelength
     :mod:`skymodel.colorimetry`, no exposure applied): channels R, G, B in Rec.709
     (``colour_space="rec709"``, the default, Blender's working space) or ACEScg
     (``"acescg"``), with the matching ``chromaticities`` attribute, or X, Y, Z
-    (``"xyz"``). The PNG is :func:`tonemap` of the Rec.709 image at ``exposure_ev``. The
+    (``"xyz"``). The PNG is :func:`tonemap` of the Rec.709 image at ``exposure_ev`` and
+    ``average_luminance`` (None: the image's log-average; :data:`TONEMAP_KEY`: the image
+    scaled by ``2**exposure_ev`` alone, the exposure of :mod:`skymodel.render.exposure`). The
     NPZ is :func:`write_spectral_npz` with the camera description and ``metadata``.
     ``xyz`` (H, W, 3) instead of ``radiance``: the image already reduced to CIE XYZ (the
     same integrals; e.g. :func:`skymodel.render.sky.render_sky_reduced` with
@@ -713,6 +716,13 @@ def save_outputs(out=None, png=None, spectral=None, *, radiance=None, wavelength
         raise SkymodelInputError("colour_space", colour_space, "one of: " + ", ".join(_EXR_SPACES))
     if exposure_ev is not None:
         scene.check("exposure_ev", exposure_ev)
+    if average_luminance is not None:
+        try:
+            ok = float(average_luminance) > 0 and math.isfinite(float(average_luminance))
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise SkymodelInputError("average_luminance", average_luminance, "a positive finite luminance")
     if (radiance is None) == (xyz is None):
         raise SkymodelInputError("radiance", "both or neither of radiance and xyz", "exactly one of them")
     if xyz is not None:
@@ -781,7 +791,8 @@ def save_outputs(out=None, png=None, spectral=None, *, radiance=None, wavelength
         if bad_png:
             raise SkymodelInputError("rgb_linear", f"{bad_png} non-finite pixels", "finite values in valid pixels")
         ev = 0.0 if exposure_ev is None else scene.check("exposure_ev", exposure_ev)
-        scale = TONEMAP_KEY / _log_average(Y, valid) * 2.0**ev
+        avg = _log_average(Y, valid) if average_luminance is None else float(average_luminance)
+        scale = TONEMAP_KEY / avg * 2.0**ev
         Y = None
         rgb8 = np.empty((H, W, 3), dtype=np.uint8)
         for r0 in starts:

@@ -46,6 +46,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from skymodel import scene
+from skymodel.colorimetry import K_M
 from skymodel.astro.lunar_irradiance import illuminance_lux, moon_irradiance
 from skymodel.astro.moon import MoonPosition, moon_position
 from skymodel.astro.night_background import DARK_SKY_ZENITH_MAG_ARCSEC2, dark_sky_radiance
@@ -56,7 +57,7 @@ from skymodel.render.cameras import Camera
 
 __all__ = ["sunlit", "lowest_elevation_deg", "moonlit", "NIGHT_SUN_BELOW_DEG", "slant_transmittance",
            "TransmittanceTable", "moon_profile", "MoonLamp", "moon_lamp", "splat_points", "NightInfo",
-           "night_light", "NIGHT_MODES", "night_active", "night_exposure_offset_ev"]
+           "night_light", "NIGHT_MODES", "night_active"]
 
 #: The sun elevation [deg] below which the moonlit sky, the stars and the glow are drawn (above
 #: it they are under 2e-4 of the sunlit sky; the moon's disc is drawn at any sun elevation).
@@ -89,28 +90,6 @@ def night_active(mode, time_utc) -> bool:
     """Whether the night's light is drawn: ``mode`` ``auto`` (the registry's ``night``) with a
     date-time to place the moon and stars; never with ``off`` or without a time."""
     return scene.check("night", mode) == "auto" and time_utc is not None
-
-
-# ----------------------------------------------------------------------------- exposure
-
-#: Log-average luminance [cd m^-2] of an image below which its preview is shown darker than
-#: middle grey (about the sky and ground at the sun's -5 to -6 degrees, the end of civil dusk).
-NIGHT_EXPOSURE_KNEE_CD_M2 = 3.0
-#: Below the knee the preview's exposure opens up by only ``1 - NIGHT_EXPOSURE_SLOPE`` of the
-#: stops the light falls: the shown log-average is ``0.18 (L / knee)^slope``.
-NIGHT_EXPOSURE_SLOPE = 0.25
-
-
-def night_exposure_offset_ev(log_average_y: float) -> float:
-    """Stops [EV, <= 0] added to a preview's automatic exposure (which shows the log-average
-    luminance at middle grey) so that the night is darker than the day: 0 at and above
-    :data:`NIGHT_EXPOSURE_KNEE_CD_M2`, ``-slope log2(knee / L)`` below (L = 683 ``log_average_y``
-    cd m^-2; ``log_average_y`` in the colour scale's units, W m^-2 sr^-1 ybar-weighted).
-    Continuous and monotonic in L, so a sequence keyed frame by frame does not flicker."""
-    lum = max(float(log_average_y), 1e-30) * 683.0
-    if not math.isfinite(lum) or lum >= NIGHT_EXPOSURE_KNEE_CD_M2:
-        return 0.0
-    return -NIGHT_EXPOSURE_SLOPE * math.log2(NIGHT_EXPOSURE_KNEE_CD_M2 / lum)
 
 
 # ----------------------------------------------------------------------------- transmittance
@@ -328,6 +307,12 @@ class NightInfo:
     def as_dict(self) -> dict:
         return dict(self.__dict__)
 
+    def moon_horizontal_illuminance_y(self) -> float:
+        """The moon's direct light on a horizontal plane at the observer [colour-scale units,
+        683 lux = 1]: what a renderer that lights the scene with a moon lamp (the disc not in
+        the image) adds to the incident meter of :mod:`skymodel.render.exposure`."""
+        return self.moon_illuminance_lux / K_M * max(math.sin(math.radians(self.moon_elevation_deg)), 0.0)
+
 
 def night_light(profile, camera: Camera, latitude_deg, longitude_deg, time_utc, matrix=None, *,
                 sun_elevation_deg: float, observer_altitude_m: float = 0.0, quality=None, solution=None,
@@ -374,8 +359,8 @@ def night_light(profile, camera: Camera, latitude_deg, longitude_deg, time_utc, 
 
     n_stars = 0
     if float(sun_elevation_deg) < NIGHT_SUN_BELOW_DEG:
-        n_stars = _glow_stars_ground(profile, camera, latitude_deg, longitude_deg, time_utc, table, dirs, valid, omega, image,
-                                     reduce, zenith_v_mag, timings)
+        n_stars = _glow_stars_ground(profile, camera, latitude_deg, longitude_deg, time_utc, table, dirs, valid, omega,
+                                     image, reduce, zenith_v_mag, timings)
 
     # the moon's disc: its irradiance at the observer (disc fraction above the horizon included)
     e_moon, _ = _ground_irradiance(profile, mp, table)

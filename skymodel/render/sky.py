@@ -12,7 +12,7 @@ pixel lands in the pixel that contains its centre.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 

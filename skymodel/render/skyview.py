@@ -14,10 +14,12 @@ node instead of 81), on two direction grids (as the sky-view LUT of Hillaire 202
   is built; a pixel outside the sun cap is interpolated bilinearly from it, which is what
   the marcher itself does for such a pixel, so the table's value equals direct marching
   there up to rounding (a linear reduction commutes with linear interpolation);
-* the **sun cap**: directions within ``MarchSettings.sun_exact_deg`` (8 degrees) of the
+* the **sun cap**: directions within ``MarchSettings.sun_exact_deg`` (8-12 degrees) of the
   sun, which direct marching evaluates exactly (the aureole), on a polar grid centred on
   the sun: angle from the sun evenly spaced in its logarithm from :data:`CAP_EXACT_DEG` to
-  the cap's edge (:data:`CAP_RADIAL` nodes) x angle around the sun, 0..180 degrees (the
+  the cap's edge (:data:`CAP_RADIAL` nodes for an 8-degree cap, in proportion to the
+  logarithm of the edge's angle over :data:`CAP_EXACT_DEG` for others, so the spacing stays)
+  x angle around the sun, 0..180 degrees (the
   same symmetry, :data:`CAP_AROUND` nodes), marched exactly once per sun. A pixel in the
   cap is interpolated bilinearly in (log angle, angle around): within
   :data:`CAP_RATIO_DEG` of the horizon the ratio exact / main grid (the main grid's
@@ -46,11 +48,13 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Reduction", "SkyViewTable", "xyz_reduction", "rgb_reduction", "CAP_RADIAL", "CAP_AROUND",
-           "TABLE_MIN_PIXELS"]
+           "cap_radial_nodes", "TABLE_MIN_PIXELS"]
 
-#: Nodes of the sun cap's polar grid: from the sun outward (gamma = gamma_max u^2) and around it
+#: Nodes of the sun cap's polar grid: from the sun outward (log-spaced, for a cap of
+#: :data:`CAP_RADIAL_DEG`; :func:`cap_radial_nodes` for other caps) and around it
 #: (0..180 degrees). Sized by ``benchmarks/bench_skyview.py`` (see the module doc).
 CAP_RADIAL = 32
+CAP_RADIAL_DEG = 8.0
 CAP_AROUND = 49
 #: Pixels closer than this to the sun (degrees) are marched exactly: the aureole of coarse
 #: dust falls by 10x per degree there and carries 5-10 % ripples over 0.1 degree, which no
@@ -66,6 +70,14 @@ CAP_RATIO_DEG = 4.0
 #: ``method="auto"``: below it the table's own nodes (about 12 000 at ``final``) are not
 #: fewer than the pixels near the sun it saves marching.
 TABLE_MIN_PIXELS = 1 << 18
+
+
+def cap_radial_nodes(cap_deg: float) -> int:
+    """Radial nodes of a sun cap reaching ``cap_deg`` from the sun: :data:`CAP_RADIAL` at
+    :data:`CAP_RADIAL_DEG`, in proportion to log(cap_deg / CAP_EXACT_DEG) otherwise (the same
+    log spacing: ``final``'s 12-degree cap has 41)."""
+    ratio = np.log(max(float(cap_deg), 1.01 * CAP_EXACT_DEG) / CAP_EXACT_DEG) / np.log(CAP_RADIAL_DEG / CAP_EXACT_DEG)
+    return max(2, int(round(CAP_RADIAL * ratio)))
 
 
 @dataclass(frozen=True)
@@ -122,7 +134,7 @@ class SkyViewTable:
     the sun cap (module doc). ``lookup(directions)`` gives (N, K) values; ``timings`` the
     seconds spent building the cap (the main grid is the marcher's)."""
 
-    def __init__(self, marcher, reduction: Reduction, cap_radial: int = CAP_RADIAL, cap_around: int = CAP_AROUND):
+    def __init__(self, marcher, reduction: Reduction, cap_radial: int | None = None, cap_around: int = CAP_AROUND):
         if marcher._grid is None:
             raise ValueError("the sky-view table needs a marcher with a direction grid (settings.exact is False)")
         t0 = time.perf_counter()
@@ -144,6 +156,8 @@ class SkyViewTable:
                            0.0])
         self.e1 = e1 / np.linalg.norm(e1)
         self.e2 = np.cross(self.sun, self.e1)
+        if cap_radial is None:
+            cap_radial = cap_radial_nodes(marcher.settings.sun_exact_deg)
         self.cap_u = np.linspace(0.0, 1.0, int(cap_radial))
         self.cap_psi = np.linspace(0.0, np.pi, int(cap_around))
         self.cap_min = np.radians(CAP_EXACT_DEG)

@@ -478,15 +478,15 @@ def _rotate(d, cos_t, rng):
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
-def _sample_scattering(med: _Medium, sig_sc, sig_s, sig_t, wl_idx, directions, rng):
-    """At collisions: choose each one's scatterer by its share of the scattering coefficient
-    (``sig_sc`` (n_species, n), ``sig_s``, ``sig_t`` per metre) and sample the new direction
-    from its phase function. Returns the weight factor (``sig_s / sig_t`` times the sampled
-    aerosol phase table's mass) and the new unit directions (n, 3)."""
+def _sample_scatterer_cos(med: _Medium, sig_sc, sig_s, wl_idx, rng):
+    """Choose each collision's scatterer by its share of the scattering coefficient
+    (``sig_sc`` (n_species, n), ``sig_s`` per metre) and draw the cosine of the scattering
+    angle from its phase function. Returns ``(scatterer (n,): 0 air, 1 + regime, cos (n,))``.
+    The random numbers are drawn in one fixed order (the choice, then Rayleigh, then each
+    regime), which :func:`_sample_scattering` and :func:`_guided_direction` share."""
     cum = np.cumsum(sig_sc, axis=0)
     comp_i = np.minimum((rng.random(wl_idx.size) * sig_s[None, :] >= cum).sum(axis=0), med.n_regime)
     cos_t = np.empty(wl_idx.size)
-    wt = sig_s / sig_t
     m = comp_i == 0
     if np.any(m):
         cos_t[m] = med.sample_rayleigh_cos(wl_idx[m], rng)
@@ -494,6 +494,19 @@ def _sample_scattering(med: _Medium, sig_sc, sig_s, sig_t, wl_idx, directions, r
         m = comp_i == rg + 1
         if np.any(m):
             cos_t[m] = med.sample_aerosol_cos(rg, wl_idx[m], rng)
+    return comp_i, cos_t
+
+
+def _sample_scattering(med: _Medium, sig_sc, sig_s, sig_t, wl_idx, directions, rng):
+    """At collisions: choose each one's scatterer by its share of the scattering coefficient
+    (``sig_sc`` (n_species, n), ``sig_s``, ``sig_t`` per metre) and sample the new direction
+    from its phase function. Returns the weight factor (``sig_s / sig_t`` times the sampled
+    aerosol phase table's mass) and the new unit directions (n, 3)."""
+    comp_i, cos_t = _sample_scatterer_cos(med, sig_sc, sig_s, wl_idx, rng)
+    wt = sig_s / sig_t
+    for rg in range(med.n_regime):
+        m = comp_i == rg + 1
+        if np.any(m):
             wt[m] *= med.phase_mass[rg, wl_idx[m]]
     return wt, _rotate(directions, cos_t, rng)
 
@@ -534,7 +547,6 @@ def _guided_direction(med: _Medium, d_in, w, sig_sc, sun, alpha, rng):
     errors, rare runs far high). Guided, q >= alpha g there, so the product
     weight x p_aer(d.s) stays bounded by about p(d_in.d) / alpha."""
     m = d_in.shape[0]
-    n_reg = med.n_regime
     sig_s = sig_sc.sum(axis=0)
     guided = rng.random(m) < alpha
     cos_t = np.empty(m)
@@ -542,17 +554,7 @@ def _guided_direction(med: _Medium, d_in, w, sig_sc, sun, alpha, rng):
     # physical part: scatterer from sig_c / sig_s, angle from its phase function about d_in
     pi = np.flatnonzero(~guided)
     if pi.size:
-        cum = np.cumsum(sig_sc[:, pi], axis=0)
-        comp_i = np.minimum((rng.random(pi.size) * sig_s[pi][None, :] >= cum).sum(axis=0), n_reg)
-        ct = np.empty(pi.size)
-        mk = comp_i == 0
-        if np.any(mk):
-            ct[mk] = med.sample_rayleigh_cos(w[pi][mk], rng)
-        for rg in range(n_reg):
-            mk = comp_i == rg + 1
-            if np.any(mk):
-                ct[mk] = med.sample_aerosol_cos(rg, w[pi][mk], rng)
-        cos_t[pi] = ct
+        cos_t[pi] = _sample_scatterer_cos(med, sig_sc[:, pi], sig_s[pi], w[pi], rng)[1]
         base[pi] = d_in[pi]
     # guide: a regime from its column weight, the angle from its phase function about s
     gi = np.flatnonzero(guided)
