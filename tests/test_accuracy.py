@@ -385,3 +385,17 @@ def test_checked_in_measured_table_covers_every_knob_and_scene():
         # the presets are ordered in error: reference (0) < final < preview
         assert 0.0 < result["presets"]["final"][scene]["radiance_rel_mean"] < \
             result["presets"]["preview"][scene]["radiance_rel_mean"]
+
+
+def test_cache_key_changes_with_the_renderer(tmp_path, monkeypatch):
+    """code_digest hashes every module of the package, so a renderer change renders the
+    cached references and presets again (it hashed skymodel/validation alone before)."""
+    pkg = tmp_path / "skymodel"
+    (pkg / "validation").mkdir(parents=True)
+    (pkg / "render").mkdir()
+    (pkg / "validation" / "accuracy.py").write_text("x = 1\n")
+    (pkg / "render" / "marcher.py").write_text("y = 1\n")
+    monkeypatch.setattr(accuracy, "__file__", str(pkg / "validation" / "accuracy.py"))
+    before = accuracy.code_digest()
+    (pkg / "render" / "marcher.py").write_text("y = 2\n")
+    assert accuracy.code_digest() != before

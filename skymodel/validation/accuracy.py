@@ -389,9 +389,11 @@ def _key(obj) -> str:
 
 
 def code_digest() -> str:
-    """Hash of the package's Python sources: part of every cache key, so that a change
-    to the renderer renders the references again instead of reusing stale ones."""
-    root = os.path.dirname(os.path.abspath(__file__))
+    """Hash of the package's Python sources (every module of ``skymodel``, the renderer's
+    included): part of every cache key, so that a change to the renderer renders the
+    references and presets again instead of reusing stale ones (it hashed
+    ``skymodel/validation`` alone before, so a renderer change kept the cached renders)."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     h = hashlib.sha256()
     for folder, dirs, files in sorted(os.walk(root)):
         dirs[:] = sorted(d for d in dirs if d != "__pycache__")
