@@ -98,3 +98,26 @@ def test_paths_for_noise():
     rel = np.array([[0.02, 0.01], [0.005, 0.004], [0.1, 0.1]])
     n = paths_for_noise(rel, 1000, 0.005, min_paths=2000, max_paths=50_000)
     np.testing.assert_array_equal(n, [16000, 2000, 50000])
+
+
+def test_committed_truth_runs_are_read_when_the_cache_has_none(tmp_path):
+    """benchmarks/truth/ keeps the Monte Carlo runs of the report (a few kB each): each holds
+    its views, positive means and the noise the benchmark asks for (sun 60 and 20: <= 0.65 %
+    per direction), and bench_truth finds them with an empty cache."""
+    import glob
+    import importlib.util
+    import os
+
+    root = os.path.join(os.path.dirname(__file__), "..", "benchmarks")
+    files = sorted(glob.glob(os.path.join(root, "truth", "mc_*.npz")))
+    assert len(files) >= 4
+    for f in files:
+        with np.load(f) as z:
+            assert np.all(z["mean"] > 0) and np.all(z["n"] > 0) and z["views"].shape == (z["mean"].shape[0], 2)
+            if "_60_" in f or "_20_" in f:
+                assert np.max(z["se"] / z["mean"]) <= 0.0065, f
+    spec = importlib.util.spec_from_file_location("bench_truth", os.path.join(root, "bench_truth.py"))
+    bt = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bt)
+    _, mc = bt.Scene("desert", 60.0, str(tmp_path)).load_mc()
+    assert mc is not None and mc["mean"].shape == (view_set(60.0).shape[0], 3)

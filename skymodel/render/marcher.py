@@ -112,6 +112,7 @@ class MarchSettings:
     spherical_orders: int = 2  # transports with each point's own sun angle (0 = independent columns)
     spherical_probe_step_nm: float = 100.0  # wavelength spacing of the spherical correction (orders >= 2)
     peak_aureole: bool = True  # add the light scattered 2+ times in the cut forward peaks (skymodel.render.aureole)
+    peak_diffuse: bool = False  # scatter the diffuse light near the horizon in the cut peaks (skymodel.render.peak_diffuse)
     chunk: int = 2048  # directions per batch (memory ~ chunk * view_steps * n_wl * 8 B * 6)
     earth_shadow: bool = True  # False: the planet blocks no sunlight (for measuring the shadow's effect)
 
@@ -232,7 +233,7 @@ def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> 
         prof_ms, medium_ms, sun_table, n_altitudes=s.table_altitudes, n_mu=s.table_mu,
         n_phi=s.table_phi, n_mus=s.table_mus, n_steps=s.table_steps, orders=s.orders,
         max_orders=s.max_orders, tolerance=s.order_tolerance, spherical_orders=s.spherical_orders,
-        spherical_probe_step_nm=s.spherical_probe_step_nm, progress=progress)
+        spherical_probe_step_nm=s.spherical_probe_step_nm, peak_diffuse=s.peak_diffuse, progress=progress)
     to_full = linear_interp_matrix(wl_ms, profile.wavelengths_nm)
     aureole = (peak_aureole_table(profile, medium, s.delta_m_cutoff_deg, top)
                if (s.peak_aureole and ms_field.orders > 1) else None)

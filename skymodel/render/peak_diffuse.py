@@ -1,0 +1,140 @@
+"""The cut forward peak for the diffuse light near the horizon: the small-angle
+scattering of the solver's radiance field across the sky/ground edge.
+
+Delta-M (:mod:`skymodel.render.medium`) cuts the aerosols' forward peaks (a fraction f of
+aerosol scattering inside a cone, 12 degrees in every preset; f = 0.85-0.88 for the
+desert's coarse dust) and treats the cut light as not scattered: a point scatters
+sigma f integral(q L) into a direction d, with q the peak's normalised shape around d,
+and delta-M books it as sigma f L(d), light that goes on along d (the scaled
+extinction). The two agree where the radiance L is smooth across the peak. Near the
+horizon it is not: a direction a degree above the local horizon has the bright ground a
+degree or two below it, so the true source there holds ground light turned by a few
+degrees, which delta-M leaves out (measured, desert AOD 0.5, sun 60 degrees, view zenith
+89 degrees: the marcher 2-8 % below the Monte Carlo tracer at every preset, all of it
+ground light; docs/accuracy.md, "Where the presets miss the truth").
+
+This module gives the missing term to the solver's source, order by order:
+
+    dJ(h, d) = sum over regimes r of sigma_r(h) (integral q_r(d, d') L(d') dOmega' f_r - f_r L(d)),
+
+with the true (not scaled) scattering coefficient sigma_r. It is evaluated on the
+solver's grid in one dimension, the elevation: the peak (a few degrees wide) is
+projected onto the elevation axis (the small-angle plane: k(x) = integral of the
+peak along the other axis), L is read linearly in elevation between the zenith nodes at
+the direction's own azimuth and sun angle, and only directions within
+:data:`BAND_DEG` of the horizon get the term (elsewhere L is smooth on the peak's scale
+and the term is second order). It redistributes light (a constant L gives dJ = 0), so
+it conserves energy up to the grid's quadrature.
+
+Opt-in (``MarchSettings.peak_diffuse``, off in every preset), because against the Monte
+Carlo tracer it fixes the desert and low suns but makes rural at sun 60 worse (``final``,
+view zenith 88-89 degrees, marcher / MC - 1 at 450/550/650 nm, MC se 0.2-0.5 %; commands
+in notebooks/truth_misses): desert AOD 0.5 sun 60, 89/180 -2.37/-5.21/-8.24 ->
++0.36/+0.50/+0.16 %, 89/90 -3.40/-4.75/-7.60 -> -0.52/+0.95/+0.31 %; desert sun 20, 89/90
+-1.57/-2.50/-4.54 -> -0.10/+0.43/-0.42 %; but rural AOD 0.2 sun 60, 89/0
+-0.45/-0.28/+0.05 -> -1.43/-1.48/-1.33 %. The term itself is right there: the solver with a
+3-degree cone on 64 x 48 direction nodes (no term; about 12x the solver time) gives
+-1.30/-1.36/-1.25 % at 89/0 (every view at 85-89 degrees within 0.25 % of the term), so
+rural's horizon carries a second error that the missing term used to offset.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from skymodel.numerics import linear_interp_matrix, trapezoid
+
+#: Zenith nodes within this elevation of the horizon (degrees) get the peak term.
+BAND_DEG = 24.0
+#: Step (degrees) of the small-angle plane on which the peak is projected.
+STEP_DEG = 0.05
+
+
+def peak_of(profile, medium) -> np.ndarray:
+    """The cut peak of every aerosol regime, p - min(p, p(cutoff)) inside the cone (R, A, W)
+    in sr^-1, on the profile's tabulated angles, from the medium's truncated phase
+    functions (p* = min(p, p(cutoff)) / (norm (1 - f)), norm the tabulated p's integral)."""
+    ang = np.asarray(profile.aerosol_phase_angles_deg, float)
+    p = np.asarray(profile.aerosol_phase, float)
+    f = np.asarray(medium.forward_fraction, float)
+    norm = -2.0 * np.pi * trapezoid(p, np.cos(np.radians(ang)), axis=1)  # (R, W)
+    clipped = np.asarray(medium.truncated_phase, float) * (norm * (1.0 - f))[:, None, :]
+    cut = p - clipped
+    return np.where(cut > 1e-9 * p, cut, 0.0)  # outside the cone only rounding is left
+
+
+def projected_kernel(angles_deg, peak, step_deg: float = STEP_DEG):
+    """The peak (A, W) projected on one axis of the small-angle plane: offsets x (n,) in
+    radians and k (n, W) in rad^-1 with k(x) = integral of peak(sqrt(x^2 + y^2)) dy,
+    normalised so that sum(k) dx equals the peak's integral over the sphere."""
+    ang = np.asarray(angles_deg, float)
+    peak = np.asarray(peak, float)
+    nz = np.flatnonzero(np.any(peak > 0, axis=1))
+    reach = float(ang[min(nz[-1] + 1, ang.size - 1)]) if nz.size else step_deg
+    n = int(np.ceil(reach / step_deg))
+    dx = np.radians(step_deg)
+    x = np.arange(-n, n + 1) * dx
+    y = np.arange(-n, n + 1) * dx
+    theta = np.degrees(np.hypot(x[:, None], y[None, :]))  # (n_x, n_y)
+    k = np.stack([np.interp(theta, ang, peak[:, w], right=0.0).sum(axis=1) * dx for w in range(peak.shape[1])],
+                 axis=1)  # (n_x, W)
+    mu = np.cos(np.radians(ang))
+    total = -2.0 * np.pi * trapezoid(peak, mu, axis=0)  # (W,): the integral over the sphere
+    s = k.sum(axis=0) * dx
+    return x, k * np.where(s > 0, total / np.where(s > 0, s, 1.0), 0.0)[None, :]
+
+
+def elevation_operator(mu_nodes, x, k, band_deg: float = BAND_DEG):
+    """D (W, n_band, n_mu) and the band's node indices: D applied to L on the zenith nodes
+    (ascending cosines) gives, per band node i, the term c(e) = integral k(x) L(e + x) dx -
+    f L(e) averaged over the node's hat (the piecewise-linear basis function of node i in
+    the elevation e = arcsin(mu)), L linear in e between nodes. The average (a lumped L2
+    projection) instead of c at the node itself: the marcher reads the table linearly
+    between nodes, and c falls steeply away from the horizon (the peak's tail), so point
+    values would put about twice the light at 1 degree that belongs there (a sky/ground
+    step at the horizon, desert dust: 0.074 against 0.034; averaged: 0.036)."""
+    from scipy.signal import fftconvolve
+
+    e = np.arcsin(np.asarray(mu_nodes, float))
+    band = np.flatnonzero(np.abs(e) <= np.radians(band_deg))
+    dx = x[1] - x[0]
+    f = k.sum(axis=0) * dx  # (W,)
+    fine = np.arange(-np.pi / 2, np.pi / 2 + 0.5 * dx, dx)  # the elevation, on the kernel's step
+    hat = linear_interp_matrix(e, fine)  # (n_mu, n_fine): hat[j] is node j's basis function
+    # c for each basis function: conv(k, hat_j)(e) - f hat_j(e); k is even, so the
+    # convolution is the correlation integral k(x) L(e + x) dx
+    basis = np.repeat(hat.T[:, :, None], k.shape[1], axis=2)  # (n_fine, n_mu, W): "same" keeps in1's shape
+    c = fftconvolve(basis, k[:, None, :] * dx, mode="same", axes=0) - basis * f
+    w = hat[band] / hat[band].sum(axis=1, keepdims=True)  # (n_band, n_fine)
+    return np.einsum("bf,fjw->wbj", w, c), band
+
+
+class PeakDiffuse:
+    """The peak term dJ on a solver grid (module doc): ``source(L)`` for a radiance field
+    L in the solver's dir layout (n_wl, n_dir, n_h, n_mus) -> dJ, the same shape, float32."""
+
+    def __init__(self, profile, medium, grid, band_deg: float = BAND_DEG):
+        peaks = peak_of(profile, medium)
+        self.terms = []
+        for reg in range(peaks.shape[0]):
+            sig = medium.aerosol[reg].at(grid.h_nodes)  # (n_h, n_wl) true scattering, m^-1
+            if not (np.any(sig > 0) and np.any(peaks[reg] > 0)):
+                continue
+            x, k = projected_kernel(profile.aerosol_phase_angles_deg, peaks[reg])
+            d, band = elevation_operator(grid.mu_nodes, x, k, band_deg)
+            rows = slice(int(band[0]), int(band[-1]) + 1)  # the band is contiguous (ascending nodes)
+            self.terms.append((d.astype(np.float32), rows, sig.T.astype(np.float32)))
+        self.grid = grid
+
+    def __bool__(self):
+        return bool(self.terms)
+
+    def source(self, radiance: np.ndarray) -> np.ndarray:
+        g = self.grid
+        lf = radiance.reshape(g.n_wl, g.n_mu, g.n_phi, g.n_h, g.n_mus)
+        out = np.zeros_like(lf)
+        flat = lf.reshape(g.n_wl, g.n_mu, -1)
+        for d, rows, sig in self.terms:  # sig (n_wl, n_h)
+            part = np.matmul(d, flat).reshape(g.n_wl, d.shape[1], g.n_phi, g.n_h, g.n_mus)
+            out[:, rows] += part * sig[:, None, None, :, None]
+        return out.reshape(radiance.shape)
