@@ -289,6 +289,86 @@ def measure_effects(elevations, width, step_nm):
     }
 
 
+# --------------------------------------------------------------------------- pixel costs
+
+
+def measure_pixel_costs(widths_direct=(256, 512), widths_table=(1024, 2048, 4096), sun_elevation_deg=30.0,
+                        quality="final", repeats=3):
+    """What an environment's pixels add to its build (the planner's ``ENV_SECONDS_PER_PIXEL``,
+    ``ENV_SECONDS_PER_PIXEL_TABLE``, ``ENV_TABLE_FIXED_S``): the multiple-scattering solve is
+    done once and reused, then each width is timed (median of ``repeats``) as the accuracy
+    table's preset render marches it (``SkyMarcher.radiance`` of every pixel, 81
+    wavelengths) and as the add-on's build does (``render_sky_reduced`` to RGB: every pixel
+    below ``TABLE_MIN_PIXELS``, the sky-view table above). Slopes and intercepts by least
+    squares on the pixel count; the intercept of the direct march is the per-sun part every
+    size pays."""
+    from skymodel import Atmosphere
+    from skymodel.render import sky as render_sky
+    from skymodel.render.marcher import SkyMarcher, solve_sky
+    from skymodel.render.quality import quality_settings
+    from skymodel.render.skyview import rgb_reduction
+    from skymodel.wavelengths import default_wavelengths
+
+    settings = quality_settings(quality)
+    prof = Atmosphere(location=LOCATION, month=MONTH).optical_profile(default_wavelengths(5.0))
+    t0, c0 = time.perf_counter(), time.process_time()
+    sol = solve_sky(prof, settings)
+    t_solve, c_solve = time.perf_counter() - t0, time.process_time() - c0
+    rows = []
+    from skymodel.render.cameras import make_camera
+
+    # warm-up, not timed: the first render of a process loads the core's tables
+    render_sky.render_sky_reduced(prof, make_camera("equirectangular", 16), sun_elevation_deg,
+                                  rgb_reduction(prof.wavelengths_nm), 3, quality=settings, solution=sol)
+
+    def med(fn):
+        """(median wall s, median CPU s): on a shared machine the CPU time is the better
+        estimate of an idle machine's wall time (the renders are single-threaded numpy)."""
+        ts, cs = [], []
+        for _ in range(repeats):
+            t, c = time.perf_counter(), time.process_time()
+            fn()
+            ts.append(time.perf_counter() - t)
+            cs.append(time.process_time() - c)
+        return float(np.median(ts)), float(np.median(cs))
+
+    for w in tuple(widths_direct) + tuple(widths_table):
+        cam_dirs = None
+        if w in widths_direct:
+            cam_dirs, _ = sky_directions(w)
+            t_marcher, c_marcher = med(lambda: SkyMarcher(prof, sun_elevation_deg, 180.0, 0.0, settings, solution=sol)
+                                       .radiance(cam_dirs))
+        else:
+            t_marcher = c_marcher = None
+        cam = make_camera("equirectangular", w, n_wavelengths=3)  # as the environment build: 3 channels a pixel
+        t_env, c_env = med(lambda: render_sky.render_sky_reduced(prof, cam, sun_elevation_deg, rgb_reduction(prof.wavelengths_nm),
+                                                          3, quality=settings, solution=sol, dtype=np.float32))
+        rows.append({"width": w, "pixels": w * (w // 2), "marcher_s": t_marcher, "environment_s": t_env,
+                     "marcher_cpu_s": c_marcher, "environment_cpu_s": c_env,
+                     "load_average_1min": round(os.getloadavg()[0], 2)})
+        print(json.dumps(rows[-1]), flush=True)
+
+    def fit(pairs):
+        x = np.array([p for p, _ in pairs], float)
+        y = np.array([t for _, t in pairs], float)
+        slope, icpt = np.polyfit(x, y, 1)
+        return float(slope), float(icpt)
+
+    # fitted on the CPU times (see med)
+    k_m, c_m = fit([(r["pixels"], r["marcher_cpu_s"]) for r in rows if r["marcher_cpu_s"] is not None])
+    k_d, c_d = fit([(r["pixels"], r["environment_cpu_s"]) for r in rows if r["width"] in widths_direct])
+    k_t, c_t = fit([(r["pixels"], r["environment_cpu_s"]) for r in rows if r["width"] in widths_table])
+    out = {"quality": quality, "sun_elevation_deg": sun_elevation_deg, "solve_s": round(t_solve, 2),
+           "solve_cpu_s": round(c_solve, 2), "rows": rows,
+           "marcher_s_per_pixel": k_m, "marcher_intercept_s": c_m, "environment_direct_s_per_pixel": k_d,
+           "environment_direct_intercept_s": c_d, "environment_table_s_per_pixel": k_t,
+           "environment_table_intercept_s": c_t, "table_fixed_s": c_t - c_d,
+           "date": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"), "machine": machine(),
+           "git_revision": git_revision()}
+    print(json.dumps({k: v for k, v in out.items() if k != "rows"}, indent=1))
+    return out
+
+
 # --------------------------------------------------------------------------- proof
 
 
@@ -317,13 +397,36 @@ def proof_scenes():
     }
 
 
+_CPU: list = []  # CPU seconds of the last _timed call
+
+
 def _timed(fn):
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     out = fn()
+    _CPU[:] = [time.process_time() - c]
     return out, time.perf_counter() - t
 
 
-def run_proof(write: bool, width: int) -> int:
+def _cpu_plan(scene):
+    """The planner's plan of ``scene`` with the accuracy table's preset wall times replaced
+    by their CPU times: its predictions are CPU seconds, to compare with the builds' CPU
+    seconds (which a shared machine's load changes far less than wall time), or None when
+    the table has no CPU times."""
+    import copy
+
+    from skymodel.planner import ACCURACY_PATH, load_table, plan
+
+    acc = load_table(ACCURACY_PATH)
+    if not acc or not all(v.get("cpu_s") for per in acc.get("presets", {}).values() for v in per.values()):
+        return None
+    acc = copy.deepcopy(acc)
+    for per in acc["presets"].values():
+        for v in per.values():
+            v["time_s"] = v["cpu_s"]
+    return plan(scene, accuracy=acc)
+
+
+def run_proof(write: bool, width: int, repeats: int = REPEATS) -> int:
     from skymodel import Atmosphere
     from skymodel.planner import plan
     from skymodel.render.marcher import SkyMarcher
@@ -352,11 +455,15 @@ def run_proof(write: bool, width: int) -> int:
             return m, m.radiance(dirs)
 
         (m_all, r_all), t_all = _timed(everything)
+        cpu_all = list(_CPU)
         (m_plan, r_plan), t_plan = _timed(planned)
+        cpu_plan = list(_CPU)
         times_all, times_plan = [t_all], [t_plan]
-        for _ in range(REPEATS - 1):  # alternate, so that a change of the machine's load hits both alike
+        for _ in range(repeats - 1):  # alternate, so that a change of the machine's load hits both alike
             times_plan.append(_timed(planned)[1])
+            cpu_plan += _CPU
             times_all.append(_timed(everything)[1])
+            cpu_all += _CPU
         ref = Reference(r_all.radiance, dirs, omega, r_all.sun_irradiance, el, wl_all)
         cmp = ref.compare(r_plan.radiance, r_plan.sun_irradiance, el, m_plan.profile.wavelengths_nm)
         from skymodel.planner import visible_bands
@@ -371,6 +478,14 @@ def run_proof(write: bool, width: int) -> int:
                             "predicted_error": round(d.predicted_error, 4)} for k, d in p.decisions.items()},
                "predicted_error": round(p.predicted_error, 4),
                "time_everything_s": round(min(times_all), 3), "time_planned_s": round(min(times_plan), 3),
+               # the planner's own prediction of these two builds at this size (Plan.predicted_environment_s,
+               # what decide_angular_resolution uses), against the median of the timed runs
+               "predicted_everything_s": round(p.predicted_environment_s(width, everything_on=True), 3),
+               "predicted_planned_s": round(p.predicted_environment_s(width), 3),
+               "median_everything_s": round(float(np.median(times_all)), 3),
+               "median_planned_s": round(float(np.median(times_plan)), 3),
+               "time_basis": p.time_basis,
+               "cpu_everything_s": [round(t, 3) for t in cpu_all], "cpu_planned_s": [round(t, 3) for t in cpu_plan],
                "times_everything_s": [round(t, 3) for t in times_all],
                "times_planned_s": [round(t, 3) for t in times_plan],
                "orders_everything": int(m_all.field.orders), "orders_planned": int(m_plan.field.orders),
@@ -389,18 +504,29 @@ def run_proof(write: bool, width: int) -> int:
                              "transmittance_550_everything": ap_all[pick]["transmittance_550"],
                              "transmittance_550_planned": ap_plan[pick]["transmittance_550"]}
         out["time_saving"] = round(1.0 - out["time_planned_s"] / out["time_everything_s"], 3)
+        out["ratio_everything"] = round(out["median_everything_s"] / max(out["predicted_everything_s"], 1e-9), 3)
+        out["ratio_planned"] = round(out["median_planned_s"] / max(out["predicted_planned_s"], 1e-9), 3)
+        pc = _cpu_plan(scene)
+        if pc is not None:  # the same prediction in CPU seconds, against the builds' CPU seconds
+            out["predicted_cpu_everything_s"] = round(pc.predicted_environment_s(width, everything_on=True), 3)
+            out["predicted_cpu_planned_s"] = round(pc.predicted_environment_s(width), 3)
+            out["ratio_cpu_everything"] = round(float(np.median(cpu_all)) / out["predicted_cpu_everything_s"], 3)
+            out["ratio_cpu_planned"] = round(float(np.median(cpu_plan)) / out["predicted_cpu_planned_s"], 3)
         out["load_average_1min"] = round(os.getloadavg()[0], 2)
         results[name] = out
         print(f"{name}: everything {out['time_everything_s']:.2f} s, planned {out['time_planned_s']:.2f} s "
               f"({out['time_saving']:.0%} saved); error {err:.2f} (predicted {p.predicted_error:.2f}, "
-              f"tolerance {scene.tolerance:g})", flush=True)
+              f"tolerance {scene.tolerance:g}); median/predicted s: everything {out['median_everything_s']:.2f}/"
+              f"{out['predicted_everything_s']:.2f} ({out['ratio_everything']:.2f}x), planned "
+              f"{out['median_planned_s']:.2f}/{out['predicted_planned_s']:.2f} ({out['ratio_planned']:.2f}x); "
+              f"load {out['load_average_1min']:.1f}", flush=True)
         for line in p.summary():
             print("   ", line)
     meta = {"machine": machine(), "git_revision": git_revision(), "command": command_line(),
             "date": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
             "camera": {"camera": "equirectangular", "width": width, "height": width // 2},
             "everything_on": "quality 'final', 5 nm (81 wavelengths), smooth profile, all effects",
-            "repeats": REPEATS,
+            "repeats": repeats,
             "accuracy_table": _accuracy_table_used(),
             "source": "measured: skymodel ray marcher, this repository", "scenes": results}
     if write:
@@ -491,6 +617,31 @@ def write_doc(meta):
               "The machine is shared" + (f" (1-minute load average {min(loads):.1f}-{max(loads):.1f} on its "
                                          f"{os.cpu_count()} cores during the runs)" if loads else "")
               + ": times vary from run to run, the two builds of a scene were timed alternately."]
+    timed = [(n, r) for n, r in meta["scenes"].items() if "predicted_everything_s" in r]
+    if timed:
+        ratios = [x for _, r in timed for x in (r["ratio_everything"], r["ratio_planned"])]
+        within = all(0.5 <= x <= 2.0 for x in ratios)
+        lines += ["", "Predicted against measured time (issue 23: within a factor of 2). The prediction is the "
+                  "planner's own (`Plan.predicted_environment_s`, what the angular-resolution decision uses) for "
+                  f"a cold build of {cam['width']}x{cam['height']}: " + timed[0][1]["time_basis"] + " (the plan's "
+                  "time), less the pixels of the render that time was measured on, plus this size's "
+                  "(`environment_build_time`). Measured: the median of the alternated runs.", "",
+                  "| scene | everything on: predicted (s) | measured (s) | measured / predicted | planned: predicted (s) "
+                  "| measured (s) | measured / predicted | CPU s measured / predicted: everything, planned | "
+                  "load (1 min) |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for name, r in timed:
+            cpu = (f"{r['ratio_cpu_everything']:.2f}, {r['ratio_cpu_planned']:.2f}" if "ratio_cpu_everything" in r
+                   else "-")
+            lines.append(f"| {name} | {r['predicted_everything_s']:.1f} | {r['median_everything_s']:.1f} | "
+                         f"{r['ratio_everything']:.2f} | {r['predicted_planned_s']:.1f} | {r['median_planned_s']:.1f} | "
+                         f"{r['ratio_planned']:.2f} | {cpu} | {r['load_average_1min']:.1f} |")
+        lines += ["", f"Measured / predicted {min(ratios):.2f}-{max(ratios):.2f}: "
+                  + ("every case within the factor of 2." if within else "not every case within the factor of 2.")
+                  + " The time scale is the accuracy table's preset time, measured at its own load (its rows "
+                  "say which): a machine more (or less) loaded than then scales every measured time, not the "
+                  "prediction. The CPU column makes the same prediction from the table's CPU seconds "
+                  "(`cpu_s`) and compares it with the builds' CPU seconds, which the load changes far less."]
     lines += ["", "Per band and for the light (measured error of the planned build):", "",
               "| scene | ground | horizon (0-10°) | low (10-30°) | high (30-90°) | light dE2000 | light illuminance |",
               "|---|---|---|---|---|---|---|"]
@@ -531,14 +682,22 @@ def main(argv=None):
     ap.add_argument("--doc-only", action="store_true",
                     help="rewrite the measured sections of docs/planner.md from the stored JSON files")
     ap.add_argument("--proof-width", type=int, default=256, help="equirectangular width of the proof renders")
+    ap.add_argument("--pixels", action="store_true",
+                    help="measure what an environment's pixels add to its build (the planner's per-pixel constants)")
+    ap.add_argument("--qualities", default="preview,final", help="qualities of --pixels")
+    ap.add_argument("--repeats", type=int, default=REPEATS, help="timed runs of each build in the proof (alternated)")
     ap.add_argument("--elevations", default=",".join(str(e) for e in ELEVATIONS_DEG))
     args = ap.parse_args(argv)
+    if args.pixels:
+        for q in args.qualities.split(","):
+            measure_pixel_costs(quality=q, repeats=args.repeats)
+        return 0
     if args.doc_only:
         with open(PROOF_JSON, encoding="utf-8") as f:
             write_doc(json.load(f))
         return 0
     if args.proof:
-        return run_proof(args.write, args.proof_width)
+        return run_proof(args.write, args.proof_width, args.repeats)
     elevations = [float(e) for e in args.elevations.split(",")]
     out = measure_effects(elevations, args.width, args.step)
     text = json.dumps(out, indent=1, default=str)

@@ -96,7 +96,8 @@ def farthest_object_m(scene, cameras, scale: float = 1.0) -> float:
 
 
 def describe(scene, settings) -> object:
-    """The core's ``SceneDescription`` of ``scene`` with the panel's sun and tolerance."""
+    """The core's ``SceneDescription`` of ``scene`` with the panel's sun, tolerance and quality
+    (the build's time is predicted at the quality it is built at)."""
     scale = scene.unit_settings.scale_length or 1.0
     cams = cameras_of(scene, settings.plan_cameras)
     views = [camera_view(c, scale) for c in cams] or [planner.CameraView()]
@@ -111,7 +112,7 @@ def describe(scene, settings) -> object:
         sky_visible=not r.film_transparent, image_width=max(1, int(r.resolution_x * pct)),
         image_height=max(1, int(r.resolution_y * pct)), tolerance_kind=settings.plan_tolerance_kind,
         tolerance=float(settings.plan_tolerance), time_budget_s=float(settings.plan_time_budget),
-        samples=max(1, int(getattr(getattr(scene, "cycles", None), "samples", 64) or 64)))
+        samples=max(1, int(getattr(getattr(scene, "cycles", None), "samples", 64) or 64)), quality=params.quality)
 
 
 def overrides(settings) -> dict:

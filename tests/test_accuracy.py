@@ -3,6 +3,7 @@ the checked-in measured table (skymodel/data/presets/accuracy/measured.json). No
 
 from __future__ import annotations
 
+import copy
 import json
 import os
 
@@ -294,6 +295,44 @@ def test_merge_replaces_only_the_rows_remeasured(quick):
     assert accuracy.merge_results(quick, dict(part, config="full"))["config"] == "full"
 
 
+def test_a_preset_refresh_keeps_every_other_row_and_says_when_each_was_measured(quick):
+    """``skymodel bench accuracy --knobs preset --write-docs`` re-measures only the presets'
+    rows: the other rows stay as they were, each with the date it was measured (inferred
+    from the table's partial runs for rows written before rows carried a date)."""
+    old = copy.deepcopy(quick)
+    for r in old["rows"]:
+        r.pop("date", None)
+    for per in old["presets"].values():
+        for v in per.values():
+            v.pop("date", None)
+    old["partial_runs"] = [{"command": "skymodel bench accuracy --quick --knobs orders --scenes noon",
+                            "date": "2026-01-01T00:00:00Z", "total_s": 1.0},
+                           {"command": "skymodel bench accuracy --quick --knobs preset", "date": "2026-01-02T00:00:00Z",
+                            "total_s": 1.0}]
+    old["date"] = "2026-01-03T00:00:00Z"
+    new = dict(copy.deepcopy(quick), rows=[dict(r, time_s=0.5, date="2026-02-01T00:00:00Z")
+                                           for r in quick["rows"] if r["knob"] == "preset"],
+               command="skymodel bench accuracy --quick --knobs preset", total_s=1.0, date="2026-02-01T00:00:00Z",
+               atmosphere=dict(quick["atmosphere"], aerosol_model="another"))
+    merged = accuracy.merge_results(old, new)
+    # the rows kept are the old atmosphere's; the part measured in another says so
+    assert merged["atmosphere"] == old["atmosphere"]
+    assert merged["partial_runs"][-1]["atmosphere"]["aerosol_model"] == "another"
+    from skymodel.validation.accuracy_report import _run_atmosphere
+
+    assert "aerosol model another" in _run_atmosphere(merged["partial_runs"][-1])
+    by_knob = {}
+    for r in merged["rows"]:
+        by_knob.setdefault(r["knob"], set()).add(r["date"])
+    assert by_knob["orders"] == {"2026-01-01T00:00:00Z"}  # its partial run
+    assert by_knob["preset"] == {"2026-02-01T00:00:00Z"}
+    assert by_knob["phase"] == {"2026-01-03T00:00:00Z"}  # no run names it: the table's date
+    assert [r["time_s"] for r in merged["rows"] if r["knob"] == "orders"] == \
+        [r["time_s"] for r in quick["rows"] if r["knob"] == "orders"]
+    assert all(r["time_s"] == 0.5 for r in merged["rows"] if r["knob"] == "preset")
+    assert accuracy.row_date(merged, "noon", "orders") == "2026-01-01T00:00:00Z"
+
+
 def test_cli_merges_parts_measured_in_parallel(quick, tmp_path):
     # two parts as two processes would write them: the orders rows, then the presets
     from skymodel.cli import main
@@ -346,3 +385,17 @@ def test_checked_in_measured_table_covers_every_knob_and_scene():
         # the presets are ordered in error: reference (0) < final < preview
         assert 0.0 < result["presets"]["final"][scene]["radiance_rel_mean"] < \
             result["presets"]["preview"][scene]["radiance_rel_mean"]
+
+
+def test_cache_key_changes_with_the_renderer(tmp_path, monkeypatch):
+    """code_digest hashes every module of the package, so a renderer change renders the
+    cached references and presets again (it hashed skymodel/validation alone before)."""
+    pkg = tmp_path / "skymodel"
+    (pkg / "validation").mkdir(parents=True)
+    (pkg / "render").mkdir()
+    (pkg / "validation" / "accuracy.py").write_text("x = 1\n")
+    (pkg / "render" / "marcher.py").write_text("y = 1\n")
+    monkeypatch.setattr(accuracy, "__file__", str(pkg / "validation" / "accuracy.py"))
+    before = accuracy.code_digest()
+    (pkg / "render" / "marcher.py").write_text("y = 2\n")
+    assert accuracy.code_digest() != before

@@ -62,6 +62,9 @@ def test_description_from_camera_objects_and_render_settings(scene):
     assert d.farthest_object_m == pytest.approx(far, rel=1e-6)
     assert (d.image_width, d.image_height) == (320, 180)
     assert d.sky_visible and d.sun_elevation_deg == pytest.approx(60.0)
+    assert d.quality == s.quality  # the build's time is predicted at the quality it is built at (#23)
+    s.quality = "final"
+    assert scene_description.describe(scene, s).quality == "final"
     scene.render.film_transparent = True
     scene.unit_settings.scale_length = 2.0
     d2 = scene_description.describe(scene, s)
@@ -163,9 +166,10 @@ def test_auto_environment_width_is_the_plans_within_the_time_budget(scene):
     s.plan_time_budget = 1e5
     plan = scene_description.make_plan(scene, s)
     assert plan.environment_width == 8192  # a 4K picture asks for the largest environment
-    s.plan_time_budget = 60.0
+    budget = 0.95 * plan.predicted_build_s  # just under what the largest takes
+    s.plan_time_budget = budget
     plan = scene_description.make_plan(scene, s)
-    assert plan.environment_width < 8192 and plan["angular_resolution"].predicted_time_s <= 60.0
+    assert plan.environment_width < 8192 and plan["angular_resolution"].predicted_time_s <= budget
     assert "time budget" in plan["angular_resolution"].reason
     for quality in ("preview", "final"):
         s.quality = quality

@@ -53,15 +53,34 @@ SHARES = {"aerial_perspective": 0.35, "physical": 0.35, "orders": 0.15, "spectra
 PHYSICAL_SHARE = SHARES["physical"]
 #: Environment image widths the planner picks from (height = width / 2).
 MIN_ENV_WIDTH, MAX_ENV_WIDTH = 256, 8192
-#: Build time of an environment image per pixel beyond the effect table's render (s/px): the
-#: fixed part (optical profile, multiple-scattering tables) is the table's time, the marching
-#: of each pixel adds this. Measured (rural, June, sun 10 degrees, preview, 2-core machine:
-#: 256: 5.7 s, 512: 5.8 s, 1024: 7.5 s, 2048: see docs/planner.md): (7.51 - 5.84) s /
-#: (1024x512 - 512x256) px.
-ENV_SECONDS_PER_PIXEL = 4.25e-6
+#: Build time of an environment image per pixel (s/px), by quality, beyond the pixels of the
+#: render whose measured time the prediction starts from, for images that march every pixel
+#: (fewer than :data:`TABLE_MIN_PIXELS`): the add-on's build reduced to RGB
+#: (``render_sky_reduced``). Measured: ``python benchmarks/bench_planner.py --pixels``
+#: (rural, June, 5 nm, sun 30, the solve reused; median CPU seconds of 3 at 256 and 512 px
+#: wide, fitted; b6e4cde, 2026-11-26, load 6-7). The accuracy table's preset render marches
+#: full spectra, 1.25e-5 s/px at final: its 512x256 pixels cost 1.3 s more than the constant
+#: says, 5 % of a final render. ``reference`` was not measured: final's.
+ENV_SECONDS_PER_PIXEL = {"preview": 2.4e-6, "final": 2.7e-6, "reference": 2.7e-6}
+#: The same for images of :data:`TABLE_MIN_PIXELS` pixels or more, which resample the sky-view
+#: table (:mod:`skymodel.render.skyview`): each pixel costs only its lookup and reduction
+#: (the same run at 1024, 2048 and 4096 px wide).
+ENV_SECONDS_PER_PIXEL_TABLE = {"preview": 7.4e-7, "final": 5.8e-7, "reference": 5.8e-7}
+#: The sky-view table's own march (s), by quality, paid once by images of
+#: :data:`TABLE_MIN_PIXELS` pixels or more (the intercept of their times less that of the
+#: marched sizes; the same run).
+ENV_TABLE_FIXED_S = {"preview": 0.35, "final": 1.65, "reference": 1.65}
+#: Images of this many pixels or more resample the sky-view table instead of marching every
+#: pixel (``skymodel.render.skyview.TABLE_MIN_PIXELS``; a test keeps them equal).
+TABLE_MIN_PIXELS = 1 << 18
+#: Width (px) of the render whose time the effect table records (64x32).
+EFFECT_TABLE_WIDTH = 64
+#: Width (px) of the accuracy table's preset renders when the table does not say (512x256).
+PRESET_WIDTH = 512
 #: The add-on's environment build costs this many times the effect table's render (its fixed
 #: part: the add-on's marcher settings and 41 wavelengths against the table's): 5.3 s (the fixed
-#: part of the widths above) against the table's 2.37 s at sun 10 degrees.
+#: part of the widths above) against the table's 2.37 s at sun 10 degrees. Used only when the
+#: accuracy table (whose ``final`` preset time sets the scale) is absent.
 ENV_FIXED_PER_TABLE = 2.2
 #: Cycles CPU render time of the volume shells, s per pixel, sample and layer (volume bounces 8):
 #: measured 64x32 px, rural, sun 10 degrees, 2-core machine, bpy 5.0.1: 7.5 s at 8 layers and
@@ -111,6 +130,10 @@ class Plan:
     predicted_time_everything_s: float
     time_basis: str
     tables: dict = field(default_factory=dict)
+    #: what :attr:`predicted_time_s` stands for: ``time_fixed_scale`` times it is the time of a
+    #: render ``time_base_width`` x ``time_base_width / 2`` (:func:`environment_build_time`)
+    time_fixed_scale: float = 1.0
+    time_base_width: int = 64
 
     def __getitem__(self, name) -> Decision:
         return self.decisions[name]
@@ -153,6 +176,14 @@ class Plan:
         Cycles render of one frame (the largest of the decisions' times)."""
         d = self["aerial_perspective"] if self.mode == "volumetric" else self["angular_resolution"]
         return float(d.predicted_time_s) if d.predicted_time_s is not None else float(self.predicted_time_s)
+
+    def predicted_environment_s(self, width: int, everything_on: bool = False) -> float:
+        """Predicted seconds to build this plan's environment (or, ``everything_on``, the
+        build with every effect on) at the scene's quality, ``width`` x ``width / 2``: the
+        planner's own :func:`environment_build_time`, as :func:`decide_angular_resolution`
+        uses it. A cold build: the multiple-scattering solve is included."""
+        t = self.predicted_time_everything_s if everything_on else self.predicted_time_s
+        return environment_build_time(t, width, self.time_fixed_scale, self.time_base_width, self.scene.quality)
 
     def warnings(self) -> list[str]:
         """What the user must be told before this plan is built ([] when nothing)."""
@@ -345,15 +376,18 @@ def decide_physical_effects(ctx: _Planning) -> list[Decision]:
 
 def scattering_order_options(ctx: _Planning) -> dict:
     """{orders: (error, time_s or None, source)}: the effect table's orders_1..4, and
-    the accuracy table's counts it lacks (time scaled to the effect table's)."""
+    the accuracy table's counts it lacks, their time scaled to the effect table's by the
+    ratio to the accuracy table's own converged row (``orders=tolerance``, measured in the
+    same run at the same size: its ``final`` preset time is another run's, at another size
+    and load)."""
     eff, acc, el, t_ref = ctx.eff, ctx.acc, ctx.el, ctx.t_ref
     orders = {int(v): (eff.error(n, el, ctx.scene), eff.time(n, el), f"effects.json {n}")
               for v, n in eff.knob_rows("orders_").items()}
     if acc is not None:
-        for v, (e, t) in acc.knob("orders", el, ctx.acc_metric).items():
+        for v, (e, _) in acc.knob("orders", el, ctx.acc_metric).items():
             if isinstance(v, (int, float)) and float(v).is_integer():
-                orders.setdefault(int(v), (e, t * t_ref / (acc.preset_time("final", el) or t) if t else None,
-                                           f"measured.json orders={v}"))
+                ratio = acc.time_ratio("orders", v, "tolerance")
+                orders.setdefault(int(v), (e, t_ref * ratio if ratio else None, f"measured.json orders={v}"))
     return orders
 
 
@@ -403,12 +437,10 @@ def spectral_step_options(ctx: _Planning) -> dict:
     for v, n in eff.knob_rows("wavelength_step_").items():
         steps[float(v)] = (eff.error(n, el, ctx.scene), eff.time(n, el), f"effects.json {n}")
     if acc is not None:
-        rows = acc.knob("wavelengths", el, ctx.acc_metric)
-        ref_t = rows.get(81, (0, None))[1]
-        for v, (e, t) in rows.items():
+        for v, (e, _) in acc.knob("wavelengths", el, ctx.acc_metric).items():
             if v in _WL_COUNT_STEP:
-                tt = t_ref * t / ref_t if (t and ref_t) else None
-                steps[_WL_COUNT_STEP[v]] = (e, tt, f"measured.json wavelengths={v}")
+                ratio = acc.time_ratio("wavelengths", v, 81)
+                steps[_WL_COUNT_STEP[v]] = (e, t_ref * ratio if ratio else None, f"measured.json wavelengths={v}")
     return steps
 
 
@@ -422,9 +454,9 @@ def decide_spectral_resolution(ctx: _Planning) -> tuple[Decision, float]:
             best = s
             break
     e, t, src = steps[best]
-    saved = 0.0
-    if t is not None:
-        saved = max(0.0, steps.get(10.0, (0, ctx.t_ref))[1] - t) if best > 10.0 else 0.0
+    # against the everything-on build's grid (the finest: the reference's 10 nm, or 5 nm from
+    # the accuracy table), whose time is the reference's
+    saved = max(0.0, ctx.t_ref - t) if t is not None else 0.0
     n_wl = int(round(400.0 / best)) + 1
     finer = [s for s in steps if s < best]
     return Decision(
@@ -439,13 +471,28 @@ def volume_render_time(scene: SceneDescription, n_layers: int) -> float:
                  * scene.samples)
 
 
-def environment_build_time(t_table: float, width: int, fixed_scale: float = ENV_FIXED_PER_TABLE) -> float:
-    """Predicted seconds to build an environment ``width`` x ``width / 2``: the plan's time
-    at the table's size (64x32) times ``fixed_scale`` (:data:`ENV_FIXED_PER_TABLE` for the
-    effect table's times; 1 when the accuracy table's ``final`` preset time sets the scale),
-    plus :data:`ENV_SECONDS_PER_PIXEL` per further pixel."""
-    extra_px = max(0, int(width) * (int(width) // 2) - 64 * 32)
-    return float(fixed_scale * t_table + ENV_SECONDS_PER_PIXEL * extra_px)
+def environment_pixel_time(width: int, quality: str = "final") -> float:
+    """Predicted seconds the pixels of a ``width`` x ``width / 2`` environment add to its
+    build at ``quality``: :data:`ENV_SECONDS_PER_PIXEL` each when every pixel is marched (fewer
+    than :data:`TABLE_MIN_PIXELS`), else the sky-view table's march (:data:`ENV_TABLE_FIXED_S`)
+    and :data:`ENV_SECONDS_PER_PIXEL_TABLE` each."""
+    px = int(width) * (int(width) // 2)
+    if px < TABLE_MIN_PIXELS:
+        return float(ENV_SECONDS_PER_PIXEL[quality] * px)
+    return float(ENV_TABLE_FIXED_S[quality] + ENV_SECONDS_PER_PIXEL_TABLE[quality] * px)
+
+
+def environment_build_time(t_table: float, width: int, fixed_scale: float = ENV_FIXED_PER_TABLE,
+                           base_width: int = EFFECT_TABLE_WIDTH, quality: str = "final") -> float:
+    """Predicted seconds to build an environment ``width`` x ``width / 2`` at ``quality`` from
+    ``t_table``, the measured (or ratio-scaled) time of a render ``base_width`` x
+    ``base_width / 2`` (the effect table's 64x32, or the accuracy table's preset at 512x256):
+    that time times ``fixed_scale`` (:data:`ENV_FIXED_PER_TABLE` for the effect table's
+    preview renders, 1 for the accuracy table's), less what that render's pixels cost, plus
+    what the environment's pixels cost (:func:`environment_pixel_time`; the part that does
+    not depend on the size is never taken below 0)."""
+    fixed = max(0.0, fixed_scale * float(t_table) - environment_pixel_time(base_width, quality))
+    return float(fixed + environment_pixel_time(width, quality))
 
 
 def decide_volume_layers(ctx: _Planning, ap_err: float) -> Decision:
@@ -509,34 +556,49 @@ def decide_sun_disc(scene: SceneDescription, forced: dict) -> Decision:
 
 
 def decide_angular_resolution(scene: SceneDescription, t_table: float = 0.0,
-                              fixed_scale: float = ENV_FIXED_PER_TABLE) -> Decision:
+                              fixed_scale: float = ENV_FIXED_PER_TABLE,
+                              base_width: int = EFFECT_TABLE_WIDTH) -> Decision:
     """Step 4b: the environment image's width (pixels, a power of 2 in
     :data:`MIN_ENV_WIDTH`..:data:`MAX_ENV_WIDTH`, height = width / 2) such that one of its
     pixels is no larger than a camera pixel (the smallest when the sky only lights the
     scene), and no wider than the time budget allows; its predicted time is the build's at
-    that width (:func:`environment_build_time` from the plan's time ``t_table`` at the table's size)."""
+    that width (:func:`environment_build_time` from the plan's time ``t_table`` of a render
+    ``base_width`` wide)."""
+
+    def build_time(w):
+        return environment_build_time(t_table, w, fixed_scale, base_width, scene.quality)
+
     if not scene.sky_visible:
         return Decision("angular_resolution", True, MIN_ENV_WIDTH,
                         f"the sky only lights the scene, so a {MIN_ENV_WIDTH}x{MIN_ENV_WIDTH // 2} "
                         "environment carries its light (irradiance is a smooth integral over the sky)",
-                        0.0, environment_build_time(t_table, MIN_ENV_WIDTH, fixed_scale), "geometry")
+                        0.0, build_time(MIN_ENV_WIDTH), "geometry")
     px_deg = scene.max_fov_deg / max(scene.image_width, scene.image_height)
     need = 360.0 / px_deg
     w = int(min(MAX_ENV_WIDTH, max(MIN_ENV_WIDTH, 2 ** math.ceil(math.log2(need)))))
     sharp = w
     budget = scene.time_budget_s
-    while budget is not None and w > MIN_ENV_WIDTH and environment_build_time(t_table, w, fixed_scale) > budget:
+    while budget is not None and w > MIN_ENV_WIDTH and build_time(w) > budget:
         w //= 2
-    t = environment_build_time(t_table, w, fixed_scale)
+    t = build_time(w)
     reason = (f"a camera pixel spans {px_deg:.3g} degrees ({scene.max_fov_deg:g} degree view over "
               f"{max(scene.image_width, scene.image_height)} px), so a {sharp}x{sharp // 2} environment keeps the sky "
               "at least as sharp as the picture" + (" (the largest the planner makes)" if sharp == MAX_ENV_WIDTH
                                                     else ""))
     if w < sharp:
-        reason += (f"; it would take about {environment_build_time(t_table, sharp, fixed_scale):.0f} s, over the time budget of "
+        reason += (f"; it would take about {build_time(sharp):.0f} s, over the time budget of "
                    f"{budget:g} s, so {w}x{w // 2} (softer than the picture by {sharp // w}x)")
     reason += f"; about {t:.0f} s to build"
     return Decision("angular_resolution", True, w, reason, 0.0, t, "geometry")
+
+
+def time_scale(ctx: _Planning, basis: str) -> tuple[float, int]:
+    """(fixed_scale, base_width) of :func:`environment_build_time` for the plan's times: the
+    accuracy table's ``final`` preset time is a render of its preset camera's width (1x), the
+    effect table's a 64-px preview render (:data:`ENV_FIXED_PER_TABLE`)."""
+    if ctx.acc is not None and "accuracy table" in basis:
+        return 1.0, int(ctx.acc.table.get("preset_camera", {}).get("width", PRESET_WIDTH))
+    return ENV_FIXED_PER_TABLE, int(ctx.eff.table.get("camera", {}).get("width", EFFECT_TABLE_WIDTH))
 
 
 def predicted_times(ctx: _Planning, saved: float) -> tuple[float, float, str]:
@@ -547,10 +609,11 @@ def predicted_times(ctx: _Planning, saved: float) -> tuple[float, float, str]:
     basis = (f"marcher time at the effect table's size ({eff.table.get('camera', {}).get('width', '?')}x"
              f"{eff.table.get('camera', {}).get('height', '?')}, preview tables) on its machine")
     t_plan = max(0.0, t_ref - saved)
-    if acc is not None and acc.preset_time("final", el):
-        scale = acc.preset_time("final", el) / t_ref
-        t_plan, t_all = t_plan * scale, acc.preset_time("final", el)
-        basis = "the accuracy table's 'final' preset time, scaled by the effect table's time ratios"
+    q = ctx.scene.quality
+    if acc is not None and acc.preset_time(q, el):
+        scale = acc.preset_time(q, el) / t_ref
+        t_plan, t_all = t_plan * scale, acc.preset_time(q, el)
+        basis = f"the accuracy table's '{q}' preset time, scaled by the effect table's time ratios"
     else:
         t_all = t_ref
     return t_plan, t_all, basis
@@ -592,9 +655,9 @@ def plan(scene: SceneDescription, effects=EFFECTS_PATH, accuracy=ACCURACY_PATH, 
     for d in made:
         spent += d.predicted_error
     t_plan, t_all, basis = predicted_times(ctx, 0.0 + saved_orders + saved_spectral)
-    fixed_scale = 1.0 if "accuracy table" in basis else ENV_FIXED_PER_TABLE
-    made += [decide_sun_disc(scene, forced), decide_angular_resolution(scene, t_plan, fixed_scale)]
+    fixed_scale, base_width = time_scale(ctx, basis)
+    made += [decide_sun_disc(scene, forced), decide_angular_resolution(scene, t_plan, fixed_scale, base_width)]
     rank = {k: i for i, k in enumerate(EFFECT_NAMES)}
     decisions = {d.name: d for d in sorted(made, key=lambda d: rank[d.name])}
     tables = {"effects": eff.table.get("command", ""), "accuracy": acc.table.get("command", "") if acc else None}
-    return Plan(scene, decisions, float(spent), float(t_plan), float(t_all), basis, tables)
+    return Plan(scene, decisions, float(spent), float(t_plan), float(t_all), basis, tables, fixed_scale, base_width)

@@ -80,6 +80,9 @@ class SceneDescription:
         build, or the volume shells' Cycles render of one frame; a choice predicted to take
         longer is not made (the plan says so).
     samples : Cycles samples per pixel of the user's render (the volume shells' cost).
+    quality : the renderer's quality preset the environment is built at (the registry's
+        ``quality`` choices; default ``final``, the plans' reference build): the predicted
+        time is the accuracy table's time of that preset.
     """
 
     cameras: tuple = (CameraView(),)
@@ -92,6 +95,7 @@ class SceneDescription:
     tolerance: float = 1.0
     time_budget_s: float | None = None
     samples: int = 64
+    quality: str = "final"
 
     def __post_init__(self):
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
@@ -131,6 +135,7 @@ class SceneDescription:
         if isinstance(v, bool) or not float(v).is_integer() or not 1 <= int(v) <= 1_000_000:
             raise SkymodelInputError("samples", v, "a whole number of samples per pixel in 1..1000000")
         set_("samples", int(v))
+        set_("quality", check_choice("quality", self.quality, parameter("quality").choices))
 
     @property
     def elevation_range_deg(self) -> tuple[float, float]:

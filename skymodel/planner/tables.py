@@ -60,6 +60,7 @@ class _EffectTable:
             raise ValueError("effect table has no rows")
         self.rows = rows
         self.elev = np.array([r["sun_elevation_deg"] for r in rows], float)
+        self._ratios: dict = {}
 
     def _interp(self, el, fn):
         vals = np.array([fn(r) for r in self.rows], float)
@@ -82,9 +83,18 @@ class _EffectTable:
         return max(0.0, self._interp(el, one))
 
     def time(self, effect, el) -> float:
-        if effect == "reference":
-            return self._interp(el, lambda r: r["reference"]["time_s"])
-        return self._interp(el, lambda r: r["effects"][effect]["time_s"])
+        """Seconds of the table's render with ``effect`` at sun ``el``: the reference's time
+        there times :meth:`time_ratio` (each row is one run on a shared machine, so a single
+        row's ratio carries that moment's load; the median over the sun elevations does not)."""
+        t_ref = self._interp(el, lambda r: r["reference"]["time_s"])
+        return t_ref if effect == "reference" else t_ref * self.time_ratio(effect)
+
+    def time_ratio(self, effect) -> float:
+        """Median over the table's rows of the time with ``effect`` over the reference's time."""
+        if effect not in self._ratios:
+            self._ratios[effect] = float(np.median([r["effects"][effect]["time_s"] / r["reference"]["time_s"]
+                                                    for r in self.rows]))
+        return self._ratios[effect]
 
     def reference_orders(self, el) -> int:
         return int(round(self._interp(el, lambda r: r["reference"]["orders"])))
@@ -150,6 +160,16 @@ class _AccuracyTable:
             if err is not None:
                 out[value] = (err, t)
         return out
+
+    def time_ratio(self, knob, value, base):
+        """Median over the scenes of the time of ``knob = value`` over that of ``knob = base``
+        measured in the same scene (same run, size and load), or None when no scene has both."""
+        per_scene: dict = {}
+        for r in self.table.get("rows", []):
+            if r.get("knob") == knob and r.get("value") in (value, base) and r.get("time_s"):
+                per_scene.setdefault(r["scene"], {})[r["value"]] = float(r["time_s"])
+        ratios = [v[value] / v[base] for v in per_scene.values() if value in v and base in v and v[base] > 0]
+        return float(np.median(ratios)) if ratios else None
 
     def preset_time(self, preset, el):
         p = self.table.get("presets", {}).get(preset, {})

@@ -389,9 +389,11 @@ def _key(obj) -> str:
 
 
 def code_digest() -> str:
-    """Hash of the package's Python sources: part of every cache key, so that a change
-    to the renderer renders the references again instead of reusing stale ones."""
-    root = os.path.dirname(os.path.abspath(__file__))
+    """Hash of the package's Python sources (every module of ``skymodel``, the renderer's
+    included): part of every cache key, so that a change to the renderer renders the
+    references and presets again instead of reusing stale ones (it hashed
+    ``skymodel/validation`` alone before, so a renderer change kept the cached renders)."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     h = hashlib.sha256()
     for folder, dirs, files in sorted(os.walk(root)):
         dirs[:] = sorted(d for d in dirs if d != "__pycache__")
@@ -680,10 +682,16 @@ def run_benchmark(cfg: BenchConfig, knobs=None, scenes=None, log=print) -> dict:
                     f"dE00 {err['de2000_mean']:.3f}  peak {meta['peak_memory_mb']:.0f} MB")
     from datetime import datetime, timezone
 
+    date = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    for r in rows:  # each row and preset says when it was measured (a merged table mixes runs)
+        r["date"] = date
+    for per in presets.values():
+        for entry in per.values():
+            entry["date"] = date
     return {
         "source": "measured on this project's renderer by `skymodel bench accuracy` (skymodel/validation/accuracy.py); "
                   "method and discussion in docs/accuracy.md",
-        "machine": _machine(), "command": "", "date": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "machine": _machine(), "command": "", "date": date,
         "config": cfg.name, "total_s": time.perf_counter() - t_all, "load_avg_end": list(os.getloadavg()),
         "camera": {"kind": "equirectangular", "width": cfg.width, "height": cfg.height},
         "preset_camera": {"kind": "equirectangular", "width": cfg.preset_width, "height": cfg.preset_height},
@@ -743,24 +751,58 @@ def merge_results(old: dict, new: dict) -> dict:
         return new
     measured = {(r["scene"], r["knob"]) for r in new["rows"]}
     out = dict(old)
-    out["rows"] = [r for r in old["rows"] if (r["scene"], r["knob"]) not in measured] + new["rows"]
+    kept = [dict(r, date=r.get("date") or row_date(old, r["scene"], r["knob"])) for r in old["rows"]
+            if (r["scene"], r["knob"]) not in measured]
+    out["rows"] = kept + new["rows"]
     order = {k: i for i, k in enumerate(KNOBS)}
     scenes = list(SCENES)
     out["rows"].sort(key=lambda r: (scenes.index(r["scene"]), order[r["knob"]]))
     out["scenes"] = {s: v for s, v in sorted({**old["scenes"], **new["scenes"]}.items(), key=lambda kv: scenes.index(kv[0]))}
-    presets = {name: dict(per) for name, per in old.get("presets", {}).items()}
+    presets = {name: {sc: dict(v, date=v.get("date") or row_date(old, sc, "preset")) for sc, v in per.items()}
+               for name, per in old.get("presets", {}).items()}
     for name, per in new.get("presets", {}).items():
         presets.setdefault(name, {}).update(per)
     out["presets"] = presets
-    for key in ("machine", "date", "load_avg_end", "reference_settings", "atmosphere"):
+    for key in ("machine", "date", "load_avg_end", "reference_settings"):
         out[key] = new[key]
+    # the rows kept were measured in the old table's atmosphere: it stays the table's, and a
+    # part measured in another one says so in its partial_runs entry
+    out["atmosphere"] = old.get("atmosphere", new["atmosphere"])
     if any(r["knob"] not in ("preset", "mc_samples") for r in new["rows"]):
         out["baseline_settings"] = new["baseline_settings"]
     out["total_s"] = old.get("total_s", 0.0) + new["total_s"]
-    out["partial_runs"] = list(old.get("partial_runs", [])) + [{"command": new["command"], "date": new["date"],
-                                                               "total_s": new["total_s"]}]
+    run = {"command": new["command"], "date": new["date"], "total_s": new["total_s"]}
+    if new.get("atmosphere") != out["atmosphere"]:
+        run["atmosphere"] = new["atmosphere"]
+    out["partial_runs"] = list(old.get("partial_runs", [])) + [run]
     out["command"] = old["command"]
     return out
+
+
+def _run_covers(command: str, scene: str, knob: str) -> bool:
+    """Whether a ``skymodel bench accuracy`` command line measured ``knob`` on ``scene``
+    (no --knobs / --scenes: every one)."""
+    words = command.split()
+
+    def listed(flag, value):
+        if flag not in words or words.index(flag) + 1 >= len(words):
+            return True
+        return value in words[words.index(flag) + 1].split(",")
+
+    return listed("--knobs", knob) and listed("--scenes", scene)
+
+
+def row_date(table: dict, scene: str, knob: str) -> str:
+    """When ``table`` measured ``knob`` on ``scene``: the row's own ``date`` when it has
+    one, else that of the last of its ``partial_runs`` whose command covered it, else the
+    table's ``date`` (tables written before rows carried their date)."""
+    for r in table.get("rows", []):
+        if r.get("scene") == scene and r.get("knob") == knob and r.get("date"):
+            return r["date"]
+    for run in reversed(table.get("partial_runs", [])):
+        if _run_covers(run.get("command", ""), scene, knob):
+            return run.get("date", table.get("date", ""))
+    return table.get("date", "")
 
 
 def merge_parts(parts: list[dict]) -> dict:

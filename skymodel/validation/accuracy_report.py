@@ -127,16 +127,30 @@ def plot(result: dict, scene: str, path: str) -> str:
     return path
 
 
+def _run_atmosphere(run: dict) -> str:
+    """``; <aerosol model>, AOD550 <x>`` for a part measured in another atmosphere than the
+    table's (its ``partial_runs`` entry carries it), else ""."""
+    a = run.get("atmosphere")
+    if not a:
+        return ""
+    return f"; in another atmosphere: aerosol model {a.get('aerosol_model', '?')}, AOD550 {float(a.get('aod550', 0)):.3f}"
+
+
 def generated_markdown(result: dict, md_path: str, img_dir: str) -> str:
     runs = result.get("partial_runs")
     took = (f"the run took {result['total_s'] / 60:.1f} min" if not runs else
-            "measured in parts: " + "; ".join(f"`{r['command']}` ({r['total_s'] / 60:.1f} min, {r['date']})" for r in runs))
-    parts = [BEGIN, "", f"Measured {result['date']} on {result['machine']}; {took} "
+            "measured in parts: " + "; ".join(f"`{r['command']}` ({r['total_s'] / 60:.1f} min, {r['date']}{_run_atmosphere(r)})"
+                                              for r in runs))
+    parts = [BEGIN, "", f"{'Measured' if not runs else 'Last measured'} {result['date']} on {result['machine']}; {took} "
              f"(load average at the end {', '.join(f'{x:.1f}' for x in result['load_avg_end'])}). Regenerate with:",
              "", "    " + result["command"], ""]
     if result.get("presets"):
+        dates = sorted({e.get("date", "") for per in result["presets"].values() for e in per.values()} - {""})
         parts += ["### Quality presets at "
-                  f"{result['preset_camera']['width']}x{result['preset_camera']['height']}", "", presets_table(result), ""]
+                  f"{result['preset_camera']['width']}x{result['preset_camera']['height']}", ""]
+        if runs and dates:
+            parts += [f"Measured {', '.join(dates)} (each row's `date` in the measured table says when it was measured).", ""]
+        parts += [presets_table(result), ""]
     for scene in result["scenes"]:
         png = os.path.join(img_dir, f"accuracy_{scene}.png")
         plot(result, scene, png)
