@@ -14,7 +14,8 @@ and how far it is from direct marching.
   process each (cold: imports, solve, march, EXR and PNG), wall time and peak resident
   memory (GNU time's %M).
 * ``warm``: :func:`skymodel.render.environment.render_environment` (the add-on's build) at
-  sun 30, then 25 and 20 degrees: the first solves, the next reuse the solution.
+  sun 30, then 25 and 20 degrees (``--suns``): the first solves, the next reuse the solution;
+  ``--sun-exact-deg`` replaces the preset's sun cap (to time its cost).
 * ``blender``: Blender 5.0's Sky Texture (Multiple Scattering) rendered to an equirectangular
   image of the same size with Cycles at 1 sample (``skymodel.models.blender_sky``, a child
   process with ``bpy``), wall time.
@@ -96,11 +97,19 @@ def cmd_warm(args):
     from skymodel import Atmosphere
     from skymodel.render.environment import render_environment
 
+    if args.sun_exact_deg is not None:  # the preset with another sun cap (a study, not a user knob)
+        from dataclasses import replace
+
+        from skymodel.render import quality as q
+
+        preset = q.QUALITIES[args.quality]
+        q.QUALITIES[args.quality] = replace(preset, settings=replace(preset.settings,
+                                                                      sun_exact_deg=args.sun_exact_deg))
     atm = Atmosphere(location="rural", month=6)
     with tempfile.TemporaryDirectory() as tmp:
         print("| build | quality | size | sun (deg) | wall s | solve s | method |")
         print("|---|---|---|---|---|---|---|")
-        for k, sun in enumerate((30.0, 25.0, 20.0)):
+        for k, sun in enumerate(float(x) for x in args.suns.split(",")):
             t = time.perf_counter()
             _, env = render_environment(atm, sun, 180.0, quality=args.quality, width=args.size, cache_dir=tmp)
             print(f"| {'cold' if k == 0 else 'sun only'} | {args.quality} | {args.size}x{args.size // 2} | {sun:g} "
@@ -130,6 +139,8 @@ def main(argv=None):
     p.add_argument("--quality", default="preview")
     p.add_argument("--qualities", default="final")
     p.add_argument("--step", type=float, default=10.0, help="wavelength step, nm (error)")
+    p.add_argument("--suns", default="30,25,20", help="warm: sun elevations, deg (the first solves)")
+    p.add_argument("--sun-exact-deg", type=float, default=None, help="warm: the preset's sun cap, deg")
     args = p.parse_args(argv)
     {"error": cmd_error, "sizes": cmd_sizes, "warm": cmd_warm, "blender": cmd_blender}[args.what](args)
     return 0
