@@ -50,7 +50,6 @@ of column integrals, one per scatterer, times its phase function (:meth:`SkyMarc
 
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import dataclass, field, replace
 
@@ -61,16 +60,17 @@ from skymodel.numerics import linear_interp_matrix
 from skymodel.optics.profile import LayeredProfile, OpticalProfile
 from skymodel.render.medium import evaluate_many, factor_medium, march_samples
 from skymodel.render.multiple_scattering import MultipleScatteringField, solve_multiple_scattering
-from skymodel.render.threads import in_threads as _in_threads
 from skymodel.render.rays import altitude_along, atmosphere_segment, sun_direction
 from skymodel.render.sun_transmittance import SunTransmittance
+from skymodel.render.threads import SOLVER_THREADS
+from skymodel.render.threads import in_threads as _in_threads
 from skymodel.scene import parameter
 
 #: Highest observer altitude, metres (the registry's bound: skymodel.scene).
 MAX_OBSERVER_ALTITUDE_M = parameter("observer_altitude").maximum
 #: Threads marching the direction grid's pieces of rings (:meth:`SkyMarcher._build_grid`) and
 #: other directions' chunks (:meth:`SkyMarcher.exact_in_threads`).
-MARCH_THREADS = min(2, os.cpu_count() or 1)
+MARCH_THREADS = SOLVER_THREADS  # the same cores (its own name: bench_warm_march.py varies it alone)
 #: Directions marched at once by all the threads together: at most ~0.45 GB of working
 #: arrays at 81 wavelengths and 64 view steps (MarchSettings.chunk, 2048, would be ~0.9 GB);
 #: up to 1.5 times that where :meth:`SkyMarcher._exact` pads rings of equal zenith angle.

@@ -65,7 +65,7 @@ from skymodel.render.medium import FactoredMedium, march_samples
 from skymodel.render.peak_diffuse import PeakDiffuse
 from skymodel.render.rays import altitude_along, atmosphere_segment
 from skymodel.render.sun_transmittance import SUN_ANGULAR_RADIUS_RAD, SunTransmittance
-from skymodel.render.threads import SOLVER_THREADS, in_threads
+from skymodel.render.threads import SOLVER_THREADS, chunks_in_threads
 
 
 def sun_elevation_nodes(n: int, lowest_deg: float = -20.0) -> np.ndarray:
@@ -933,13 +933,11 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
     # chunks of rays on SOLVER_THREADS threads (each chunk writes its own rays of ``out``);
     # each thread keeps one work array for the chunk's optical depth, reused chunk after
     # chunk: allocated anew each time, its pages were zeroed by the kernel again and again
-    threads = max(1, SOLVER_THREADS)
-    chunk = max(1, max_elements // threads // max(1, n_steps * n_p * n_wl))
-    starts = list(range(0, n_rays, chunk))
+    chunk = max(1, max_elements // max(1, SOLVER_THREADS) // max(1, n_steps * n_p * n_wl))
 
-    def rays_of_thread(k):
+    def rays_of_thread(own_starts):
         work = np.empty(chunk * n_wl * n_steps * n_p, dtype=f32)
-        for a in starts[k::threads]:
+        for a in own_starts:
             b = min(n_rays, a + chunk)
             c = b - a
             # the table interpolated to each sample's altitude: (c * steps * n_x, k)
@@ -970,7 +968,7 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
             gathered = np.matmul(weights[a:b], trans_sun)  # (c, n_wl, K, n_p)
             out[:, a:b] += np.einsum("cwkp,kcwp->wcp", gathered, phases[:, np.arange(a, b) % n_mu])
 
-    in_threads(rays_of_thread, range(min(threads, len(starts))), threads)
+    chunks_in_threads(rays_of_thread, range(0, n_rays, chunk), SOLVER_THREADS)
     hit = np.nonzero(hits)[0]
     if hit.size:  # direct sunlight reflected where the ray meets the ground
         t_end = t[hit, -1] + 0.5 * dt[hit, -1]
@@ -1062,16 +1060,13 @@ class _SphericalTransport:
         # corrected nodes along a grid ray)
         n_read = self.n_read
         flat_src = np.ascontiguousarray(src[:, :, :n_read]).reshape(src.shape[0], -1)  # (.., phi * mu_s * 2 * probe)
-        threads = max(1, SOLVER_THREADS)
-        starts = list(range(0, self.n_rays, self.chunk))
-
-        def rays_of_thread(k):  # chunks k, k + threads, ...: each writes its own rays of ``out``
+        def rays_of_thread(own_starts):  # each chunk writes its own rays of ``out``
             # the source at the samples' altitude and zenith cosine, the sum of the four
             # corners' rows weighted, in two work arrays kept from chunk to chunk (gathered
             # whole, (rays, steps, 4 corners, row), they were ~90 MB a chunk, allocated anew)
             at_hm = np.empty((self.chunk * self.n_steps, flat_src.shape[1]), dtype=np.float32)
             term = np.empty_like(at_hm)
-            for a in starts[k::threads]:
+            for a in own_starts:
                 b = min(self.n_rays, a + self.chunk)
                 c = b - a
                 acc, tmp = at_hm[:c * self.n_steps], term[:c * self.n_steps]
@@ -1096,7 +1091,7 @@ class _SphericalTransport:
                                         (self.mus_nodes[i + 1] <= 0.0).reshape(-1, 1)).reshape(c, self.n_steps, self.n_p, n_pr)
                 out[a:b] = np.einsum("csw,cspw->cpw", self.weight[a:b], got)
 
-        in_threads(rays_of_thread, range(min(threads, len(starts))), threads)
+        chunks_in_threads(rays_of_thread, range(0, self.n_rays, self.chunk), SOLVER_THREADS)
         if self.hits.size:
             i, f = self.ground_sun
             lgp = lg[:, self.probe]  # (n_mus, P)

@@ -24,3 +24,12 @@ def in_threads(work, starts, threads: int):
 
     with ThreadPoolExecutor(max_workers=threads) as pool:
         return list(pool.map(work, starts))
+
+
+def chunks_in_threads(work, starts, threads: int):
+    """``work(own_starts)`` on each of ``threads`` threads, thread k taking the chunks
+    ``starts[k::threads]``: for loops whose threads keep work arrays from one chunk to the
+    next (each chunk must write its own part of the output)."""
+    starts = list(starts)
+    threads = max(1, int(threads))
+    in_threads(lambda k: work(starts[k::threads]), range(min(threads, len(starts))), threads)
