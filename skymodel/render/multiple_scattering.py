@@ -245,8 +245,9 @@ _SLOPE_MATRICES: dict = {}
 
 def _spline_slope_matrix(nodes: tuple) -> np.ndarray:
     """(n, n) matrix D with D @ y = slopes at the nodes of the not-a-knot cubic spline
-    through y (for n < 4 the polynomial through the n points, as scipy): the tridiagonal system of scipy's ``CubicSpline`` (continuity of the
-    second derivative inside, not-a-knot at both ends) solved for the unit vectors, here
+    through y (for n < 4 the polynomial through the n points, as scipy): the tridiagonal
+    system of scipy's ``CubicSpline`` (continuity of the second derivative inside,
+    not-a-knot at both ends) solved for the unit vectors, here
     in numpy (importing scipy.interpolate cost a render 0.5-2 s; equal to
     ``CubicSpline(x, np.eye(n), axis=0)(x, 1)`` to 1e-15 of its largest element,
     tests/test_sun_interpolation.py)."""
@@ -581,6 +582,13 @@ def azimuth_modes(grid: TableGrid) -> np.ndarray:
     return np.cos(np.arange(grid.n_phi)[None, :] * grid.phi_nodes[:, None])
 
 
+def _mode_projection(grid: TableGrid) -> np.ndarray:
+    """(n_phi nodes, n_phi modes): C divided by each mode's norm, so that a field's cosine
+    coefficients are ``projection.T @ f`` (:func:`azimuth_modes`)."""
+    n_phi = grid.n_phi
+    return azimuth_modes(grid) * np.where(np.arange(n_phi) == 0, 1.0 / n_phi, 2.0 / n_phi)[None, :]
+
+
 def phase_modes(pm: np.ndarray, grid: TableGrid) -> np.ndarray:
     """The phase matrix P (:func:`phase_matrix`) by azimuth mode: (n_phi modes, n_wl, n_mu
     out, n_mu in) float32, P_m with (P f)(mu, phi) = sum_m cos(m phi) (P_m f_m)(mu) for f =
@@ -595,11 +603,10 @@ def phase_modes(pm: np.ndarray, grid: TableGrid) -> np.ndarray:
     measured against P in float32: P rebuilt from its modes differs from it by 6e-8 of
     its largest element, the float32 rounding of P."""
     n_wl, n_mu, n_phi = grid.n_wl, grid.n_mu, grid.n_phi
-    c = azimuth_modes(grid)
-    norm = np.where(np.arange(n_phi) == 0, 1.0 / n_phi, 2.0 / n_phi)
     # P applied to the mode cos(m phi') gives lambda_m(mu, mu') cos(m phi); project on cos(m phi)
-    applied = (pm.reshape(-1, n_phi) @ c).reshape(n_wl, n_mu, n_phi, n_mu, n_phi)  # (w, mu, phi, mu', m)
-    lam = (applied * (c * norm[None, :])[None, None, :, None, :]).sum(axis=2)  # (w, mu, mu', m)
+    applied = pm.reshape(-1, n_phi) @ azimuth_modes(grid)
+    applied = applied.reshape(n_wl, n_mu, n_phi, n_mu, n_phi)  # (w, mu, phi, mu', m)
+    lam = (applied * _mode_projection(grid)[None, None, :, None, :]).sum(axis=2)  # (w, mu, mu', m)
     return np.ascontiguousarray(np.moveaxis(lam, -1, 0), dtype=np.float32)
 
 
@@ -644,9 +651,7 @@ def scattered_source(radiance: np.ndarray, species, grid: TableGrid) -> np.ndarr
     n_wl, n_mu, n_phi, n_h, n_mus = grid.n_wl, grid.n_mu, grid.n_phi, grid.n_h, grid.n_mus
     assert radiance.shape == (n_wl, grid.n_dir, n_h, n_mus), radiance.shape
     q = species if isinstance(species, np.ndarray) else combined_phase_modes(species, grid)
-    c = azimuth_modes(grid)
-    norm = np.where(np.arange(n_phi) == 0, 1.0 / n_phi, 2.0 / n_phi)
-    forward = np.ascontiguousarray((c * norm[None, :]).T, dtype=np.float32)  # (m, phi)
+    forward = np.ascontiguousarray(_mode_projection(grid).T, dtype=np.float32)  # (m, phi)
     # coefficients, laid out (n_wl, n_mu, m, n_h * n_mus) as the field's (n_wl, n_mu, phi, ...)
     l_m = np.matmul(forward, radiance.reshape(n_wl, n_mu, n_phi, n_h * n_mus))
     j_m = np.empty_like(l_m)
@@ -655,7 +660,7 @@ def scattered_source(radiance: np.ndarray, species, grid: TableGrid) -> np.ndarr
               out=j_m.reshape(n_wl, n_mu, n_phi, n_h, n_mus).transpose(0, 2, 3, 1, 4))
     del l_m
     # back to the azimuth nodes: (n_wl, n_mu, phi, n_h * n_mus), the dir layout
-    return np.matmul(c.astype(np.float32), j_m).reshape(n_wl, grid.n_dir, n_h, n_mus)
+    return np.matmul(azimuth_modes(grid).astype(np.float32), j_m).reshape(n_wl, grid.n_dir, n_h, n_mus)
 
 
 def gathered_radiance(source: np.ndarray, ground_radiance: np.ndarray, M: np.ndarray, G: np.ndarray,
