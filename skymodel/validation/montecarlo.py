@@ -566,10 +566,10 @@ def _guided_direction(med: _Medium, d_in, w, sig_sc, sun, alpha, rng):
     mu_in = _rowdot(d_in, d_new)
     mass = med.phase_mass[:, w]  # (R, m)
     ph = med.aerosol_phase(mu_in, w)  # (R, m)
-    f = sig_sc[0] * med.rayleigh_phase(mu_in, w) + (sig_sc[1:] * ph).sum(axis=0)  # sum_c sig_c p_c
+    air = sig_sc[0] * med.rayleigh_phase(mu_in, w)
+    f = air + (sig_sc[1:] * ph).sum(axis=0)  # sum_c sig_c p_c
     with np.errstate(divide="ignore", invalid="ignore"):
-        p_phys = (sig_sc[0] * med.rayleigh_phase(mu_in, w)
-                  + (sig_sc[1:] * ph / np.where(mass > 0, mass, 1.0)).sum(axis=0)) / sig_s
+        p_phys = (air + (sig_sc[1:] * ph / np.where(mass > 0, mass, 1.0)).sum(axis=0)) / sig_s
     q = (1.0 - alpha) * p_phys + alpha * _guide_pdf(med, d_new, w, sun)
     with np.errstate(divide="ignore", invalid="ignore"):
         wgt = np.where(q > 0.0, f / sig_s / np.where(q > 0.0, q, 1.0), 0.0)
