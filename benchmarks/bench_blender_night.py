@@ -40,7 +40,7 @@ def main(argv=None):
 
     import blender_addon
     from blender_addon import animation
-    from skymodel.render import environment
+    from skymodel.render import environment, exposure
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     blender_addon.register()
@@ -52,7 +52,7 @@ def main(argv=None):
     cam = environment.environment_camera(a.width)
 
     def shown(rgb):
-        return environment.sky_log_average(rgb, cam) * 2.0 ** sc.view_settings.exposure
+        return exposure.sky_log_average(rgb, cam) * 2.0 ** sc.view_settings.exposure
 
     def image():
         img = next(n.image for n in sc.world.node_tree.nodes if n.bl_idname == "ShaderNodeTexEnvironment")

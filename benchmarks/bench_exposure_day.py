@@ -28,6 +28,7 @@ def main() -> int:
     from skymodel import scene
     from skymodel.optics.atmosphere import Atmosphere
     from skymodel.render.environment import render_environment
+    from skymodel.render.exposure import CANDELA_PER_UNIT
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--location", default="rural")
@@ -49,8 +50,8 @@ def main() -> int:
                                         width=args.width, time_iso=t, night="auto", cache_dir=cache)
             i = env.info
             moon = i.get("moon")
-            rows.append((t[11:16], sun.elevation_deg, moon, i["horizontal_illuminance_Y"] * 683.0,
-                         i["sky_log_average_Y"] * 683.0, i["exposure_incident"], i["exposure_sky"], env.exposure,
+            rows.append((t[11:16], sun.elevation_deg, moon, i["horizontal_illuminance_Y"] * CANDELA_PER_UNIT,
+                         i["sky_log_average_Y"] * CANDELA_PER_UNIT, i["exposure_incident"], i["exposure_sky"], env.exposure,
                          i["sky_log_average_Y"] * 2.0 ** env.exposure))
             hour += args.every
         top = max(r[8] for r in rows)

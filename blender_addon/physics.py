@@ -46,9 +46,10 @@ from skymodel.errors import SkymodelInputError
 from skymodel.models import SkyScene, blender_sky, get_model
 from skymodel.optics.atmosphere import Atmosphere
 from skymodel.render import environment
-from skymodel.render.environment import (  # noqa: F401  (the colour scale and exposure rule, used by the add-on)
-    CACHE_FORMAT, IMAGE_WIDTH, LUMA_709, WAVELENGTH_STEP_NM, default_cache_dir, exposure_from_illuminance,
-    fit_into_gamut, horizontal_illuminance, spectrum_rgb, sun_lamp)
+from skymodel.render.environment import (  # noqa: F401  (the colour scale, used by the add-on)
+    CACHE_FORMAT, IMAGE_WIDTH, WAVELENGTH_STEP_NM, default_cache_dir, fit_into_gamut, spectrum_rgb, sun_lamp)
+from skymodel.render.exposure import (  # noqa: F401  (the exposure rule, used by the add-on)
+    LUMA_709, exposure_from_illuminance, horizontal_illuminance)
 from skymodel.render.sky import add_sun_disc
 from skymodel.sun import limb_darkening
 

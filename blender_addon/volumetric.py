@@ -73,7 +73,8 @@ from skymodel.colorimetry import cmf_weights, xyz_to_rgb_matrix
 from skymodel.errors import SkymodelInputError
 from skymodel.optics.phase_fit import fit_phase, hg
 from skymodel.optics.profile import LayeredProfile
-from skymodel.render.environment import display_exposure, environment_camera
+from skymodel.render.environment import environment_camera
+from skymodel.render.exposure import display_exposure
 from skymodel.render.sky import render_sky
 from skymodel.wavelengths import default_wavelengths
 

@@ -182,7 +182,7 @@ def test_auto_mode_builds_a_night_in_environment_mode(night):
 def test_a_baked_evening_runs_into_the_night(night, tmp_path):
     """16:30, 17:30, 18:30 UTC: sun -10.3, -19.8, -29.7 deg (the last two below -18)."""
     from blender_addon import animation
-    from skymodel.render import environment
+    from skymodel.render import environment, exposure
 
     sc = night
     s = sc.world.skymodel
@@ -208,7 +208,7 @@ def test_a_baked_evening_runs_into_the_night(night, tmp_path):
         assert moon is not None and moon.data.energy > 0.0  # the moon is up all evening
         assert moon.data.energy == pytest.approx(record["frames"][str(f)]["moon_strength"], rel=1e-6)
         assert sc.view_settings.exposure == pytest.approx(record["frames"][str(f)]["exposure"], abs=1e-5)
-        shown.append(environment.sky_log_average(rgb, cam) * 2.0 ** sc.view_settings.exposure)
+        shown.append(exposure.sky_log_average(rgb, cam) * 2.0 ** sc.view_settings.exposure)
     # one rule for every frame (the core's, as Build Sky's): the night is shown darker than dusk
     assert shown[1] < shown[0] and shown[2] < shown[0]
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from skymodel.optics.atmosphere import Atmosphere
-from skymodel.render import environment
+from skymodel.render import environment, exposure
 
 
 @pytest.fixture(scope="module")
@@ -38,8 +38,8 @@ def test_render_then_cache_hit(atmosphere, tmp_path):
     assert rgb.shape == (16, 32, 3) and rgb.dtype == np.float32 and np.all(rgb >= 0)
     assert not env.cache_hit and env.info["cache"] == "miss"
     assert 0 < env.sun_strength < 200 and env.sun_colour[1] > 0
-    incident = environment.exposure_from_illuminance(env.info["horizontal_illuminance_Y"])
-    sky = environment.exposure_from_sky(env.info["sky_log_average_Y"])
+    incident = exposure.exposure_from_illuminance(env.info["horizontal_illuminance_Y"])
+    sky = exposure.exposure_from_sky(env.info["sky_log_average_Y"])
     assert env.exposure == pytest.approx(min(incident, sky))
     assert env.info["exposure_incident"] == pytest.approx(incident)
     meta = json.loads((tmp_path / f"sky-{env.info['cache_key']}.json").read_text())
@@ -74,16 +74,16 @@ def test_display_exposure_is_the_incident_rule_in_daylight_and_darker_at_dusk():
     """The sky meter (Krawczyk et al. 2005 key on the sky's log-average) caps the incident
     rule: a bright day sky keeps the incident exposure, a dusk sky is shown darker than the
     white-plate rule would, and a dimmer sky at a lower key."""
-    assert environment.sky_key(4.55) == pytest.approx(0.666, abs=0.002)  # 3100 cd/m2
-    assert environment.sky_key(1.0 / 683.0) == pytest.approx(0.161, abs=0.001)  # 1 cd/m2
-    assert environment.sky_key(0.0) == pytest.approx(0.03)  # L = 0: 1.03 - 2 / 2
+    assert exposure.sky_key(4.55) == pytest.approx(0.666, abs=0.002)  # 3100 cd/m2
+    assert exposure.sky_key(1.0 / 683.0) == pytest.approx(0.161, abs=0.001)  # 1 cd/m2
+    assert exposure.sky_key(0.0) == pytest.approx(0.03)  # L = 0: 1.03 - 2 / 2
     # daylight (rural June, sun 30 degrees): E_h 83.4, sky log-average 4.55 -> incident wins
-    assert environment.exposure_from_sky(4.55) > environment.exposure_from_illuminance(83.4)
+    assert exposure.exposure_from_sky(4.55) > exposure.exposure_from_illuminance(83.4)
     # sun at the horizon: E_h 1.43, log-average 0.533 -> the sky meter, ~2.8 EV darker
-    d = environment.exposure_from_sky(0.533) - environment.exposure_from_illuminance(1.43)
+    d = exposure.exposure_from_sky(0.533) - exposure.exposure_from_illuminance(1.43)
     assert -3.2 < d < -2.4
     # a dimmer sky is shown darker (lower key), not at the same level
-    assert environment.sky_key(0.02) < environment.sky_key(0.5) < environment.sky_key(5.0)
+    assert exposure.sky_key(0.02) < exposure.sky_key(0.5) < exposure.sky_key(5.0)
 
 
 def test_clear_cache_deletes_and_counts_the_stored_solutions(tmp_path):

@@ -27,7 +27,7 @@ Exposure
     :mod:`skymodel.render.exposure` (the darker of the incident-light rule and the sky meter,
     whose key falls with the light, day and night; the moon lamp's light counted in the
     incident meter), the same rule ``skymodel render`` and ``skymodel timelapse`` use for
-    their PNGs. Its names are re-exported here. A user offset is added by the renderer (the
+    their PNGs. A user offset is added by the renderer (the
     Blender add-on's Exposure Offset).
 
 Cache
@@ -59,9 +59,7 @@ from skymodel import sun as sun_module
 from skymodel.render import image_io
 from skymodel.render import sky as render_sky
 from skymodel.render.cameras import make_camera
-from skymodel.render.exposure import (  # noqa: F401  (the exposure rule, re-exported for the add-on)
-    CANDELA_PER_UNIT, LUMA_709, SKY_KEY_SCALE, display_exposure, exposure_from_illuminance, exposure_from_sky,
-    horizontal_illuminance, sky_key, sky_log_average)
+from skymodel.render.exposure import LUMA_709, display_exposure
 from skymodel.render.memory import check_render_memory
 from skymodel.render.quality import QUALITIES
 from skymodel.render.skyview import rgb_reduction
