@@ -198,7 +198,7 @@ def test_bad_input_is_named_and_leaves_the_scene_as_it_was(live_scene):
     clock.t += live.DEBOUNCE_S
     live.tick()
     _run_job(live)
-    live.tick()  # a sky is shown (preview == final here? no: 16 then 32 px)
+    live.tick()  # the first stage's sky is shown
     names = sorted(o.name for o in bpy.data.objects)
     exposure = sc.view_settings.exposure
     info = s.last_info
