@@ -85,7 +85,7 @@ def test_budget_and_samples_are_checked(field, value):
 def test_pixel_time_marches_small_images_and_resamples_large_ones():
     from skymodel.render.skyview import TABLE_MIN_PIXELS
 
-    assert decisions.TABLE_MIN_PIXELS == TABLE_MIN_PIXELS  # the planner's copy of the renderer's switch
+    assert decisions.TABLE_MIN_PIXELS == TABLE_MIN_PIXELS  # the planner prices the renderer's own switch
     w_small = 512  # 131072 px: every pixel marched
     for q in ("preview", "final", "reference"):
         assert decisions.environment_pixel_time(w_small, q) == pytest.approx(

@@ -40,6 +40,7 @@ from skymodel.planner import apply
 from skymodel.planner.scene import TOP_ALTITUDE_M, SceneDescription
 from skymodel.planner.tables import (_WL_COUNT_STEP, ACCURACY_PATH, EFFECTS_PATH, _AccuracyTable, _EffectTable,
                                      load_table)
+from skymodel.render.skyview import TABLE_MIN_PIXELS  # images this large resample the sky-view table
 
 #: Physical effects the planner may leave out, with the effect-table row that measures it.
 PHYSICAL = {"earth_shadow": "earth_shadow_off", "ground_reflection": "ground_albedo_0", "ozone": "ozone_off",
@@ -70,9 +71,6 @@ ENV_SECONDS_PER_PIXEL_TABLE = {"preview": 7.4e-7, "final": 5.8e-7, "reference": 
 #: :data:`TABLE_MIN_PIXELS` pixels or more (the intercept of their times less that of the
 #: marched sizes; the same run).
 ENV_TABLE_FIXED_S = {"preview": 0.35, "final": 1.65, "reference": 1.65}
-#: Images of this many pixels or more resample the sky-view table instead of marching every
-#: pixel (``skymodel.render.skyview.TABLE_MIN_PIXELS``; a test keeps them equal).
-TABLE_MIN_PIXELS = 1 << 18
 #: Width (px) of the render whose time the effect table records (64x32).
 EFFECT_TABLE_WIDTH = 64
 #: Width (px) of the accuracy table's preset renders when the table does not say (512x256).
