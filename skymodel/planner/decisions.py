@@ -590,31 +590,34 @@ def decide_angular_resolution(scene: SceneDescription, t_table: float = 0.0,
     return Decision("angular_resolution", True, w, reason, 0.0, t, "geometry")
 
 
-def time_scale(ctx: _Planning, basis: str) -> tuple[float, int]:
+def time_scale(ctx: _Planning, from_accuracy_table: bool) -> tuple[float, int]:
     """(fixed_scale, base_width) of :func:`environment_build_time` for the plan's times: the
-    accuracy table's ``final`` preset time is a render of its preset camera's width (1x), the
-    effect table's a 64-px preview render (:data:`ENV_FIXED_PER_TABLE`)."""
-    if ctx.acc is not None and "accuracy table" in basis:
+    accuracy table's preset time (``from_accuracy_table``, as :func:`predicted_times` says)
+    is a render of its preset camera's width (1x), the effect table's a 64-px preview render
+    (:data:`ENV_FIXED_PER_TABLE`)."""
+    if ctx.acc is not None and from_accuracy_table:
         return 1.0, int(ctx.acc.table.get("preset_camera", {}).get("width", PRESET_WIDTH))
     return ENV_FIXED_PER_TABLE, int(ctx.eff.table.get("camera", {}).get("width", EFFECT_TABLE_WIDTH))
 
 
-def predicted_times(ctx: _Planning, saved: float) -> tuple[float, float, str]:
-    """(planned time, everything-on time, what they are): the reference render's time
-    less what the decisions save, on the effect table's machine and size, or scaled to
-    the accuracy table's ``final`` preset time when that table has it."""
+def predicted_times(ctx: _Planning, saved: float) -> tuple[float, float, str, bool]:
+    """(planned time, everything-on time, what they are, whether the accuracy table set them):
+    the reference render's time less what the decisions save, on the effect table's machine
+    and size, or scaled to the accuracy table's preset time of the scene's quality when that
+    table has it."""
     eff, acc, el, t_ref = ctx.eff, ctx.acc, ctx.el, ctx.t_ref
     basis = (f"marcher time at the effect table's size ({eff.table.get('camera', {}).get('width', '?')}x"
              f"{eff.table.get('camera', {}).get('height', '?')}, preview tables) on its machine")
     t_plan = max(0.0, t_ref - saved)
     q = ctx.scene.quality
-    if acc is not None and acc.preset_time(q, el):
+    from_accuracy_table = bool(acc is not None and acc.preset_time(q, el))
+    if from_accuracy_table:
         scale = acc.preset_time(q, el) / t_ref
         t_plan, t_all = t_plan * scale, acc.preset_time(q, el)
         basis = f"the accuracy table's '{q}' preset time, scaled by the effect table's time ratios"
     else:
         t_all = t_ref
-    return t_plan, t_all, basis
+    return t_plan, t_all, basis, from_accuracy_table
 
 
 # --------------------------------------------------------------------------- the plan
@@ -652,8 +655,8 @@ def plan(scene: SceneDescription, effects=EFFECTS_PATH, accuracy=ACCURACY_PATH, 
     spent = 0.0
     for d in made:
         spent += d.predicted_error
-    t_plan, t_all, basis = predicted_times(ctx, 0.0 + saved_orders + saved_spectral)
-    fixed_scale, base_width = time_scale(ctx, basis)
+    t_plan, t_all, basis, from_accuracy_table = predicted_times(ctx, 0.0 + saved_orders + saved_spectral)
+    fixed_scale, base_width = time_scale(ctx, from_accuracy_table)
     made += [decide_sun_disc(scene, forced), decide_angular_resolution(scene, t_plan, fixed_scale, base_width)]
     rank = {k: i for i, k in enumerate(EFFECT_NAMES)}
     decisions = {d.name: d for d in sorted(made, key=lambda d: rank[d.name])}
