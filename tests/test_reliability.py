@@ -170,7 +170,7 @@ def test_render_sky_refuses_a_render_over_the_memory_limit(tiny_scene):
     profile, camera = tiny_scene
     t0 = time.perf_counter()
     with pytest.raises(SkymodelInputError) as e:
-        render_sky(profile, camera, 30.0, quality="reference", max_memory_gib=0.5)
+        render_sky(profile, camera, 30.0, quality="reference", max_memory_gib=0.25)  # estimate 0.33 GiB
     assert e.value.parameter == "max_memory" and "GiB" in str(e.value) and "tables" in str(e.value)
     assert time.perf_counter() - t0 < 1.0
     for bad in (0, -1, float("nan"), "lots", True):
@@ -259,7 +259,8 @@ def test_render_refuses_out_of_range_options_in_one_line_before_work(data, name,
     (["render", "--exposure", "nan"], "exposure_ev"),
     (["render", "--exposure", "65"], "exposure_ev"),
     (["render", "--max-memory", "0"], "max_memory"),
-    (["render", "--size", "2400x1200", "--wavelength-step", "10", "--spectral", "{tmp}/x.npz"], "max_memory"),
+    # the issue's 2400x1200 now fits (3.18 GiB measured, docs/reliability.md); 2.25 times its pixels do not
+    (["render", "--size", "3600x1800", "--wavelength-step", "10", "--spectral", "{tmp}/x.npz"], "max_memory"),
     (["render", "--max-memory", "0.01"], "max_memory"),
 ])
 def test_issue_cases_fail_the_command(argv, word, capsys, tmp_path):

@@ -10,10 +10,11 @@ the largest phase, not the sum:
   x-nodes x steps) and the multiple-scattering solve (:data:`SOLVE_BYTES` plus
   :data:`TRANSPORT_COPIES` float64 transport matrices of (table_altitudes x table_mu)^2 x
   solver wavelengths);
-* ``bands``: marching one band of directions, ``min(chunk, MARCH_PIECE, directions) x
-  view_steps x n_wl`` float64 values, :data:`BAND_COPIES` of them alive at once over the
-  marcher's threads (:meth:`skymodel.render.marcher.SkyMarcher._exact`), with the tables kept,
-  and :data:`SKYVIEW_TABLE_BYTES` more while the sky-view table is built;
+* ``bands``: marching one band of directions exactly, ``min(chunk, MARCH_PIECE, directions
+  marched exactly) x view_steps x n_wl`` float64 values (the sky-view table's sun cap, or the
+  pixels near the sun of a render marched directly), :data:`BAND_COPIES` of them alive at once
+  over the marcher's threads (:meth:`skymodel.render.marcher.SkyMarcher._exact`), with the tables
+  kept, and :data:`SKYVIEW_TABLE_BYTES` more while the sky-view table is built;
 * ``image``: the float64 spectral cube ``H x W x n_wl``, :data:`IMAGE_COPIES` of them
   (single, multiple and ground parts, their sum, the image, the writers' conversions), or
   :data:`NEAR_SUN_CUBES` of them while the pixels near the sun are marched in bands, with the tables kept;
@@ -27,7 +28,8 @@ the largest phase, not the sum:
   of the band it looks up.
 
 The constants were measured, not derived (peak of each phase with ``tracemalloc`` for
-the preview and final presets, then the whole render's peak resident memory):
+the preview and final presets, ``benchmarks/bench_memory_phases.py``, then the whole
+render's peak resident memory):
 ``benchmarks/bench_memory.py`` renders a grid of qualities x image sizes with ``skymodel
 render`` in child processes and compares this estimate with each child's peak resident
 memory (``ru_maxrss``); docs/reliability.md ("Memory guard") has the table and the
@@ -53,16 +55,22 @@ __all__ = ["MemoryEstimate", "estimate_render_memory", "check_render_memory", "l
 GIB = 1024**3
 #: Resident memory of a process that has imported skymodel's renderer and its writers [bytes] (measured).
 BASE_BYTES = 90 * 1024**2
-#: Peak bytes per ray sample while the sun-transmittance table is built (measured: 366 preview, 345 final).
-SUN_TABLE_BYTES_PER_SAMPLE = 360.0
-#: The multiple-scattering solve's peak apart from its transport matrices [bytes] (measured).
-SOLVE_BYTES = 0.39 * GIB
+#: Peak bytes per ray sample while the sun-transmittance table is built (measured with ``tracemalloc``
+#: at f78aa99: 23 preview, 15 final; 366 and 345 before #23's speed work).
+SUN_TABLE_BYTES_PER_SAMPLE = 25.0
+#: The tables' build (the multiple-scattering solve and what ``solve_sky`` builds around it) apart from the
+#: transport matrices [bytes] (fitted with :data:`TRANSPORT_COPIES` to ``solve_sky``'s ``tracemalloc`` peak
+#: at f78aa99: 0.167 GiB preview, 0.592 final, of which the solve 0.118 and 0.588; 0.39 GiB before #23's
+#: speed work).
+SOLVE_BYTES = 0.15 * GIB
 #: float64 transport matrices ((table_altitudes x table_mu)^2 x solver wavelengths) alive at once (measured).
 TRANSPORT_COPIES = 1.6
-#: float64 arrays per marched direction (view_steps x n_wl) alive at once, over the marcher's
-#: threads, for min(chunk, MARCH_PIECE) directions in flight (measured: 20 from the colour render's
-#: preview 128x64 and 512x256 peaks at 9fe0b71, 0.60 GiB; 26 before the speed work of #23, 15-16.5
-#: before the marcher split its pieces over threads).
+#: float64 arrays per direction marched exactly (view_steps x n_wl) alive at once, over the marcher's
+#: threads, for min(chunk, MARCH_PIECE, directions marched exactly) directions in flight: the sun cap's
+#: nodes of the sky-view table, or the pixels near the sun of a render marched directly (the direction
+#: grid's own march keeps far less: 0.016 GiB at preview 128x64). Measured with ``tracemalloc`` at
+#: f78aa99: 20.7 (preview) and 19.7 (final) for pieces of 1024 directions; 26 before the speed work of
+#: #23, 15-16.5 before the marcher split its pieces over threads.
 BAND_COPIES = 20.0
 #: The sky-view table's build over the marching bands (its nodes: the grid and the sun's cap) [bytes]
 #: (measured: the colour render's preview 1024x512 peak over its 512x256 peak, 0.17-0.22 GiB at 9fe0b71;
@@ -70,25 +78,28 @@ BAND_COPIES = 20.0
 SKYVIEW_TABLE_BYTES = 0.15 * GIB
 #: float64 spectral cubes (H x W x n_wl) alive at once, render and writers (measured).
 IMAGE_COPIES = 6.0
-#: ... when the image is resampled from the sky-view table (measured: 3.6 final, 3.9 preview at 1024x512, --spectral,
-#: 1ea5f38; 4.7 and 4.8 before #23's speed work). Set on the high side, 4.5 (estimate / peak 1.14-1.18 there), so
-#: that the reliability issue's 2400x1200 at 10 nm preview --spectral (4.87 GiB measured then, not re-measured)
-#: is still refused at the default 4 GiB (estimate 4.06 GiB; tests/test_reliability.py).
-TABLE_IMAGE_COPIES = 4.5
+#: ... when the image is resampled from the sky-view table (measured with ``skymodel render --spectral`` at
+#: f78aa99: 3.5 from the 2400x1200 preview at 10 nm, 3.18 GiB, and 3.7 from the 1024x512 preview at 5 nm;
+#: 3.6-3.9 at 1ea5f38, 4.7-4.8 before #23's speed work; it was 4.5 to keep the 2400x1200 case refused at the
+#: default 4 GiB, which it no longer needs: that render fits).
+TABLE_IMAGE_COPIES = 3.8
 #: ... while the pixels near the sun are marched in bands, besides those bands (measured: the --spectral preview
 #: 512x256 peak, 0.59 GiB at 1ea5f38, is its marching bands'; 3 before #23's speed work).
 NEAR_SUN_CUBES = 1.0
 #: A render reduced to colour through the sky-view table (``image_channels`` fewer than the wavelengths): bytes a pixel
 #: besides its image (H x W x image_channels values): the mask, then the writers' images (the EXR's 12 bytes, the
 #: luminance's 8, the PNG's 3 and its rows' 3) (measured: 27 bytes a pixel with a float32 image, from the colour
-#: render's peaks at preview 4096x2048 and 8192x4096, equirectangular, 9fe0b71: 0.76 and 1.68 GiB).
-REDUCED_TABLE_PIXEL_BYTES = 27.0
+#: render's peaks at preview and final 8192x4096, equirectangular, f78aa99: 1.18-1.26 and 1.36-1.44 GiB over
+#: runs; 27 bytes at 9fe0b71, before #23's speed work).
+REDUCED_TABLE_PIXEL_BYTES = 18.0
 #: ... and bytes per pixel of the band being looked up (``band_pixels``; its directions, the lookup's and the
-#: colour finish's temporaries; measured: 0.35 GiB for a band of 2^20 pixels, the same two peaks).
-REDUCED_TABLE_BAND_BYTES = 355.0
+#: colour finish's temporaries; measured with ``tracemalloc``: 0.24 GiB for a band of 2^20 pixels at f78aa99,
+#: 0.35 GiB at 9fe0b71).
+REDUCED_TABLE_BAND_BYTES = 260.0
 #: The tables kept through the march, in float64 transport matrices (the float32 copy, the field, the
-#: allocator's unreturned pages; measured: the final preset's image phase over the preview's).
-KEPT_TABLES = 1.0
+#: allocator's unreturned pages; measured: 0.18 GiB traced at the final preset's march, 0.56 of its
+#: transport matrices, at f78aa99; 1.0 before #23's speed work).
+KEPT_TABLES = 0.6
 
 
 @dataclass(frozen=True)
@@ -145,6 +156,13 @@ def _table_min_pixels() -> int:
     return int(TABLE_MIN_PIXELS)
 
 
+def _cap_nodes(sun_exact_deg: float) -> int:
+    """Directions the sky-view table's sun cap marches exactly."""
+    from skymodel.render.skyview import CAP_AROUND, cap_radial_nodes
+
+    return int(cap_radial_nodes(sun_exact_deg)) * int(CAP_AROUND)
+
+
 def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=None, *, wavelengths_nm=None,
                            n_pixels: int | None = None, image_channels: int | None = None,
                            band_pixels: int | None = None, sky_view_table: bool | None = None,
@@ -173,15 +191,16 @@ def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=
     grid_dirs = 0 if s.exact else (s.grid_zenith + s.grid_zenith_ground) * s.grid_azimuth
     kept = KEPT_TABLES * transport + grid_dirs * n_wl * 8 * 3
     per_direction = s.view_steps * n_wl * 8.0  # one float64 band array per marched direction
-    marched = max(min(s.chunk, _march_piece(), max(pixels if s.exact else grid_dirs, 1)), 1)
-    bands = kept + BAND_COPIES * marched * per_direction
     table = not s.exact and pixels >= _table_min_pixels() and sky_view_table is not False
-    if table:  # the sky-view table's build: its nodes marched (the grid, the sun's cap) and their totals
-        bands += SKYVIEW_TABLE_BYTES
-    cube = w * h * (n_wl if image_channels is None else int(image_channels)) * float(image_value_bytes)
     # with a direction grid the pixels near the sun are still marched, in bands, while the
     # three parts of the cube are held (a hemisphere camera: up to 1 - cos(sun_exact) of them)
     near = pixels if s.exact else math.ceil(pixels * (1.0 - math.cos(math.radians(s.sun_exact_deg))))
+    exact_dirs = _cap_nodes(s.sun_exact_deg) if table else near  # the directions marched exactly
+    marched = max(min(s.chunk, _march_piece(), max(exact_dirs, 1)), 1)
+    bands = kept + BAND_COPIES * marched * per_direction
+    if table:  # the sky-view table's build: its nodes marched (the grid, the sun's cap) and their totals
+        bands += SKYVIEW_TABLE_BYTES
+    cube = w * h * (n_wl if image_channels is None else int(image_channels)) * float(image_value_bytes)
     near_bands = BAND_COPIES * min(s.chunk, _march_piece(), near) * per_direction
     if table and image_channels is not None and int(image_channels) < n_wl:
         # reduced (to colour) through the table: the image, then the larger of one band's lookup and
