@@ -58,7 +58,7 @@ import numpy as np
 from skymodel.errors import SkymodelInputError, check_finite, check_range
 from skymodel.numerics import linear_interp_matrix
 from skymodel.optics.profile import LayeredProfile, OpticalProfile
-from skymodel.render.medium import evaluate_many, factor_medium, march_samples
+from skymodel.render.medium import evaluate_many, factor_medium, march_samples, step_transmittance
 from skymodel.render.multiple_scattering import MultipleScatteringField, solve_multiple_scattering
 from skymodel.render.rays import altitude_along, atmosphere_segment, sun_direction
 from skymodel.render.sun_transmittance import SunTransmittance
@@ -402,7 +402,7 @@ class SkyMarcher:
         cphi = np.where(den > 1e-12, (vs - mu * mus) / np.where(den > 1e-12, den, 1.0), 1.0)
         phi = np.arccos(np.clip(cphi, -1.0, 1.0))
         step = self.medium_ms.extinction_scaled.at(rings.h) * rings.dt[..., None]  # (G, S, W_ms)
-        weight = np.exp(-(np.cumsum(step, axis=1) - 0.5 * step)) * rings.dt[..., None]
+        weight = step_transmittance(step) * rings.dt[..., None]
         src = self.field.source_at(np.broadcast_to(rings.h[:, None, :], mus.shape), mu, phi, mus)
         return _column(weight, src)
 
@@ -598,7 +598,7 @@ class SkyMarcher:
         ext, ext_s, ray, *aers = evaluate_many(lrs, rings.h)  # each (G, S, W)
         dtw = rings.dt[..., None]
         step_tau = ext * dtw
-        trans = np.exp(-(np.cumsum(step_tau, axis=1) - 0.5 * step_tau))
+        trans = step_transmittance(step_tau)  # each step's mean (exact for a source constant over it)
         cos_theta = D @ self.sun  # (G, A)
         mus = self._sun_cosines(rings, D)  # (G, A, S)
         h_b = np.broadcast_to(rings.h[:, None, :], mus.shape)
@@ -621,7 +621,7 @@ class SkyMarcher:
         rebalance = np.zeros_like(single)
         if ms_on:
             step_tau_s = ext_s * dtw
-            trans_s = np.exp(-(np.cumsum(step_tau_s, axis=1) - 0.5 * step_tau_s))
+            trans_s = step_transmittance(step_tau_s)
             t_sun_s = scaled[0]
             first = self._delta_m_first_scattering(cos_theta, rings.dt, ray, regimes, aers, pa, c_aer, trans_s,
                                                    t_sun_s)

@@ -171,3 +171,23 @@ def march_samples(p, d, t0, t1, n: int, ground_radius: float):
     t = 0.5 * (edges[..., 1:] + edges[..., :-1])
     dt = np.diff(edges, axis=-1)
     return t, dt
+
+
+def step_transmittance(step_tau: np.ndarray, axis: int = 1) -> np.ndarray:
+    """Mean transmittance over each quadrature step of a ray, from the start of the ray:
+    with tau_k the optical depth of step k (``step_tau``, steps along ``axis``) and T_k
+    the transmittance to the step's start, T_k (1 - exp(-tau_k)) / tau_k, so that
+    ``sum(step_transmittance * dt * J)`` is exact for a source J constant over each step
+    (and ``sum(step_transmittance * dt * extinction)`` is exactly 1 - T_end). The
+    midpoint value T_k exp(-tau_k / 2) is low by tau_k^2 / 24 of the step's share: on
+    long grazing rays through the boundary layer, where the first steps hold optical
+    depths of 0.3-1, single scattering at 1 degree above the horizon came out 1 % low
+    (rural AOD 0.2, sun 60 degrees, 64 steps; with the step mean +0.06..0.2 %, 1024 steps
+    +0.05..0.1 %, against the Monte Carlo tracer; notebooks/truth_misses/orders.py).
+    With the sun at 5 degrees the sunlit source grows fast along such a ray and 64 steps
+    are +0.6 % above 1024 (the midpoint value -0.7 %)."""
+    tau = np.asarray(step_tau, dtype=float)
+    before = np.cumsum(tau, axis=axis) - tau
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mean = np.where(tau > 1e-8, -np.expm1(-tau) / np.where(tau > 1e-8, tau, 1.0), 1.0 - 0.5 * tau)
+    return np.exp(-before) * mean

@@ -61,7 +61,7 @@ import numpy as np
 
 from skymodel.geometry import altitude_grid
 from skymodel.numerics import linear_interp_matrix
-from skymodel.render.medium import FactoredMedium, march_samples
+from skymodel.render.medium import FactoredMedium, march_samples, step_transmittance
 from skymodel.render.peak_diffuse import PeakDiffuse
 from skymodel.render.rays import altitude_along, atmosphere_segment
 from skymodel.render.sun_transmittance import SUN_ANGULAR_RADIUS_RAD, SunTransmittance
@@ -428,7 +428,7 @@ class GridRays:
     dt: np.ndarray  # (rays, steps) m, length of each sample's step
     h: np.ndarray  # (rays, steps) m, altitude of each sample (>= 0)
     hits: np.ndarray  # (rays,) bool, the ray ends on the ground
-    trans: np.ndarray  # (rays, steps, n_wl) delta-M scaled transmittance from the start to each sample
+    trans: np.ndarray  # (rays, steps, n_wl) delta-M scaled transmittance from the start, mean over each step
     ground_t: np.ndarray  # (rays, n_wl) scaled transmittance to the ground (0 for rays that miss it)
     ih: np.ndarray  # (rays, steps) altitude node below each sample
     fh: np.ndarray  # (rays, steps) its fraction toward the next node
@@ -440,7 +440,8 @@ def trace_grid_rays(grid: TableGrid, medium: FactoredMedium, planet_radius_m: fl
                     n_steps: int) -> GridRays:
     """March the grid's rays through the delta-M scaled medium: sample positions,
     altitudes, local zenith cosines (interpolation between grid nodes) and the scaled
-    transmittance from each ray's start (to the middle of each step, and to the ground)."""
+    transmittance from each ray's start (each step's mean, :func:`~skymodel.render.medium.step_transmittance`,
+    and to the ground)."""
     assert planet_radius_m > 0 and top_altitude_m > 0 and n_steps >= 1, (planet_radius_m, top_altitude_m, n_steps)
     R = planet_radius_m
     hh, mm = np.meshgrid(grid.h_nodes, grid.mu_nodes, indexing="ij")  # ray (i, j) -> index i * n_mu + j
@@ -454,8 +455,7 @@ def trace_grid_rays(grid: TableGrid, medium: FactoredMedium, planet_radius_m: fl
     r = R + h
     mu_t = np.clip((r0[:, None] * mu0[:, None] + t) / r, -1.0, 1.0)  # local zenith cosine of the ray
     ext = medium.extinction_scaled.at(h)  # (rays, steps, n_wl)
-    tau_mid = np.cumsum(ext * dt[..., None], axis=1) - 0.5 * ext * dt[..., None]
-    trans = np.exp(-tau_mid)
+    trans = step_transmittance(ext * dt[..., None])  # each step's mean transmittance
     ground_t = np.where(hits[:, None], np.exp(-(ext * dt[..., None]).sum(axis=1)), 0.0)  # (rays, n_wl)
     ih, fh = _axis(grid.h_nodes, h)
     im, fm = _axis(grid.mu_nodes, mu_t)
@@ -485,7 +485,8 @@ def transport_row_scale(grid: TableGrid, rays: GridRays, medium: FactoredMedium)
 def column_transport_matrix(grid: TableGrid, rays: GridRays, row_scale: np.ndarray) -> np.ndarray:
     """The independent-column transport M, (n_wl, rays, nodes) float32, nodes = i_h *
     n_mu + i_mu as the rays: (M J)[ray] is the integral of a source J along the ray,
-    int T(t) J(h(t), mu(t)) dt by the midpoint rule, J read between the four (altitude,
+    int T(t) J(h(t), mu(t)) dt by the midpoint rule (J at the middle of each step, T its
+    mean over the step: :func:`~skymodel.render.medium.step_transmittance`), J read between the four (altitude,
     zenith) nodes around each sample (at the ray's start's sun angle and azimuth: the
     columns). Rows scaled by ``row_scale`` (:func:`transport_row_scale`). Dimensionless
     per metre of source: M [m] times J [W m^-2 sr^-1 nm^-1 m^-1]."""

@@ -26,16 +26,16 @@ the direction's own azimuth and sun angle, and only directions within
 and the term is second order). It redistributes light (a constant L gives dJ = 0), so
 it conserves energy up to the grid's quadrature.
 
-Opt-in (``MarchSettings.peak_diffuse``, off in every preset), because against the Monte
-Carlo tracer it fixes the desert and low suns but makes rural at sun 60 worse (``final``,
-view zenith 88-89 degrees, marcher / MC - 1 at 450/550/650 nm, MC se 0.2-0.5 %; commands
-in notebooks/truth_misses): desert AOD 0.5 sun 60, 89/180 -2.37/-5.21/-8.24 ->
-+0.36/+0.50/+0.16 %, 89/90 -3.40/-4.75/-7.60 -> -0.52/+0.95/+0.31 %; desert sun 20, 89/90
--1.57/-2.50/-4.54 -> -0.10/+0.43/-0.42 %; but rural AOD 0.2 sun 60, 89/0
--0.45/-0.28/+0.05 -> -1.43/-1.48/-1.33 %. The term itself is right there: the solver with a
-3-degree cone on 64 x 48 direction nodes (no term; about 12x the solver time) gives
--1.30/-1.36/-1.25 % at 89/0 (every view at 85-89 degrees within 0.25 % of the term), so
-rural's horizon carries a second error that the missing term used to offset.
+``MarchSettings.peak_diffuse``: on in ``final`` and ``reference``. Against the Monte Carlo
+tracer (``final``, view zenith 88-89 degrees, marcher / MC - 1 at 450/550/650 nm, MC se
+0.2-0.5 %; commands in notebooks/truth_misses): desert AOD 0.5 sun 60, 89/180
+-2.37/-5.21/-8.24 -> +0.36/+0.50/+0.16 %, 89/90 -3.40/-4.75/-7.60 -> -0.52/+0.95/+0.31 %;
+desert sun 20, 89/90 -1.57/-2.50/-4.54 -> -0.10/+0.43/-0.42 %. Over the rural ground it
+once looked wrong (rural AOD 0.2 sun 60, 89/0 -0.45/-0.28/+0.05 -> -1.43/-1.48/-1.33 %),
+but the term is right there (a 3-degree cone on 64 x 48 direction nodes, no term, gives
+-1.30/-1.36/-1.25 %): the second error was the view rays' quadrature, 1 % low at 89 degrees
+(:func:`~skymodel.render.medium.step_transmittance`); with it fixed, rural 60 89/0 is
+-0.08/-0.45/-0.50 % with the term.
 """
 
 from __future__ import annotations
