@@ -104,8 +104,14 @@ def _check_angle(parameter, value, low, high):
 
 
 def _format_bytes(n):
+    """``n`` bytes in the largest unit that fits, 3 significant digits; a count beyond what a
+    float holds (a width of 1e157 px: the memory check refuses it) as its power of ten."""
+    n = int(n)
     for unit, size in (("GiB", 1024**3), ("MiB", 1024**2), ("KiB", 1024)):
         if n >= size:
+            whole = n // size
+            if whole >= 10**15:
+                return f"about 10^{len(str(whole)) - 1} {unit}"
             return f"{n / size:.3g} {unit}"
     return f"{n} B"
 
