@@ -236,15 +236,17 @@ def test_rays_at_the_horizon(observers, h):
     exactly tangent (and just below) sees the ground, just above does not."""
     m = observers[h]
     zh = horizon_zenith(h, R_E)
-    offs = np.array([-2e-3, -1e-3, -2e-6, -1e-6, 0.0, 1e-6])
+    # the coarse grid reaches to within 4e-6 rad: from 100-120 km the sky's slope steepens toward the
+    # grazing ray (smoothly: log-radiance slope 17 per rad 1-2e-3 above it, 21 within 1e-5, measured)
+    offs = np.array([-2e-3, -1e-3, -1e-5, -4e-6, -2e-6, -1e-6, 0.0, 1e-6])
     for az in (180.0, 0.0, 90.0):
         r = m.radiance(zen_dirs(zh + offs, az))
         check_physical(r)
-        sky = r.radiance[:4]
+        sky = r.radiance[:6]
         assert np.all(sky > 0)
-        assert_continuous(sky, offs[:4], (2, 3))
-        assert np.all(r.ground[:4] == 0.0)
-        assert np.all(r.ground[5] > 0.0)  # sunlit ground (albedo 0.2), even 1e-6 rad below the horizon
+        assert_continuous(sky, offs[:6], (4, 5))
+        assert np.all(r.ground[:6] == 0.0)
+        assert np.all(r.ground[7] > 0.0)  # sunlit ground (albedo 0.2), even 1e-6 rad below the horizon
         # (offset 0 is tangent only to rounding: either side is right, it only has to be finite)
     if h == 0.0:
         # exactly horizontal from the ground and the air just above: the horizon sky is
@@ -361,15 +363,17 @@ def test_dense_layer_order_series_converges():
     < 1), so every scattering order came out larger than the last and the sky reached
     8 times the solar irradiance. Now each order is smaller than the last, the series
     converges, and the sky stays below E_sun per steradian. The OPAC background (ssa 0.96)
-    converges within 60 orders; the paper's (Jaenicke's free troposphere as sulfuric acid,
+    converges within 100 orders (50 measured when the grid rays' steps were weighted by their
+    midpoint transmittance, which lost light on optically thick steps; since they carry each step's
+    mean transmittance the orders decay by 0.94 instead of 0.91 and take ~75); the paper's (Jaenicke's free troposphere as sulfuric acid,
     ssa 1.000, conservative) decays more slowly, and the solver adds the rest of the series
     geometrically, so only the decrease and the bounds are asserted for it."""
     for model in ("opac", "guimera2018"):
         p = _typed_profile("background", 5.0, model)
-        m = SkyMarcher(p, 0.0, 180.0, 0.0, replace(SMALL, max_orders=60))
+        m = SkyMarcher(p, 0.0, 180.0, 0.0, replace(SMALL, max_orders=100))
         c = m.field.order_contributions
         if model == "opac":
-            assert m.field.orders < 60 and c[-1] < 1e-3
+            assert m.field.orders < 100 and c[-1] < 1e-3
         assert all(b < a for a, b in zip(c[3:], c[4:])), model
         d = dirs([0.0, 30.0, 60.0, 85.0], [0.0, 90.0, 0.0, 0.0])
         r = m.radiance(d)
