@@ -2,7 +2,8 @@
 max_bounces=1 radiance seen from the grid node: rural AOD 0.2, the delta-M medium itself (as orders.py's
 `dm`), final's tables, the sun at the sun-angle node nearest 5 degrees, altitude nodes 0 and 3, the zenith
 nodes within |mu| < 0.35 at three azimuth nodes; 100 000 paths (seed 3), about 2.5 min.
-usage: PYTHONPATH=$PWD python notebooks/truth_misses/node_first_order.py"""
+usage: PYTHONPATH=$PWD python notebooks/truth_misses/node_first_order.py ["field=value,..." [paths]]
+(a variant of final's MarchSettings, bench_truth's syntax, e.g. "sun_table_altitudes=384"; paths default 100000)"""
 import sys, numpy as np
 from dataclasses import replace
 sys.path[:0] = ["benchmarks"]
@@ -13,7 +14,8 @@ from skymodel.render.sun_transmittance import SunTransmittance
 from skymodel.render.quality import QUALITIES
 from skymodel.validation.montecarlo import trace_radiance
 from skymodel.validation.truth import view_directions
-s = QUALITIES["final"].settings
+s = replace(QUALITIES["final"].settings, **bt._parse_variant(sys.argv[1] if len(sys.argv) > 1 else ""))
+n_paths = int(sys.argv[2]) if len(sys.argv) > 2 else 100000
 prof = bt.atmosphere("rural").optical_profile(list(bt.MC_WAVELENGTHS_NM))
 f, p_star = truncate_forward_peak(prof.aerosol_phase_angles_deg, prof.aerosol_phase, 12.0)
 prof = prof.with_(aerosol_phase=p_star, aerosol_scattering_by_regime=prof.aerosol_scattering_by_regime * (1 - f[:, None, :]))
@@ -39,7 +41,7 @@ for ih in (0, 3):
                 sel.append((im, ip))
     views = np.array([[np.degrees(np.arccos(mu[im])), phi[ip]] for im, ip in sel])
     dirs = view_directions(views, bt.SUN_AZIMUTH)
-    res = trace_radiance(prof, dirs, elev[ks], bt.SUN_AZIMUTH, observer_altitude_m=grid.h_nodes[ih], n_paths=100000,
+    res = trace_radiance(prof, dirs, elev[ks], bt.SUN_AZIMUTH, observer_altitude_m=grid.h_nodes[ih], n_paths=n_paths,
                          max_bounces=1, seed=3)
     sol = np.array([L1[:, im * grid.n_phi + ip, ih, ks] for im, ip in sel])
     rel = sol / res.radiance - 1
