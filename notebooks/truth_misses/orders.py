@@ -7,6 +7,7 @@ usage: orders.py scene bounces paths [albedo] [variant] [tag] [dm]
   paths    MC paths per view and wavelength (one run, seed 7; cached in $TRUTH_MISSES_OUT)
   albedo   '' = the scene's own ground; a number = a grey ground of that albedo, in both
   variant  MarchSettings fields changed from final, 'a=1,b=2' (bench_truth's syntax)
+  (env VIEWS=0/0,70/45: only these views of the set)
   tag      name of the saved marcher result (var_<scene>_<tag>.npz; '' = not saved)
   dm       'dm': both run on the delta-M medium itself (each aerosol's phase function
            truncated at final's 12-degree cone and renormalised, its scattering times
@@ -23,6 +24,7 @@ cut forward peak as no scattering, so at N >= 2 the marcher also holds paths wit
 than N events when all but N are inside the peak (and the peak aureole adds the
 peak's own 2+ scatterings of sunlight). With N=1 the two are the same quantity.
 """
+import hashlib
 import os
 import sys
 import time
@@ -45,6 +47,10 @@ scene, bounces, paths, albedo, variant, tag = args[0], args[1], int(args[2]), ar
 dm = args[6] == "dm"
 a, e = scene.split(":")
 sc = bt.Scene(a, float(e), os.environ.get("TRUTH_CACHE", ".cache/truth"))
+if os.environ.get("VIEWS"):  # a subset of the view set, e.g. VIEWS=0/0,70/45 (the file names get its hash)
+    keep = [i for i, v in enumerate(sc.views) if f"{v[0]:g}/{v[1]:g}" in os.environ["VIEWS"].split(",")]
+    sc.views, sc.dirs, sc.angle = sc.views[keep], sc.dirs[keep], sc.angle[keep]
+    sc.name += "_v" + hashlib.sha1(os.environ["VIEWS"].encode()).hexdigest()[:6]
 atm = bt.atmosphere(a) if albedo == "" else Atmosphere(location=a, month=bt.MONTH, aod550=bt.AEROSOLS[a],
                                                         albedo=float(albedo))
 nb = 64 if bounces == "all" else int(bounces)
