@@ -87,3 +87,17 @@ def test_solver_adds_ground_light_above_the_horizon_only(desert):
     sunlit = off.mus_nodes > 0.5
     near_ground = (slice(None), first_up, slice(None), 0, sunlit)
     assert np.all(on.source[near_ground] > off.source[near_ground])
+
+
+def test_the_convolution_is_scipys_same_mode():
+    """peak_diffuse convolves by numpy's FFT (no scipy.signal import at render time): the
+    central samples of the full convolution, as scipy.signal.fftconvolve's mode "same",
+    for kernels shorter and longer than the signal, odd and even lengths."""
+    from scipy.signal import fftconvolve
+
+    from skymodel.render.peak_diffuse import _convolve_same
+
+    rng = np.random.default_rng(7)
+    for n, m in ((100, 31), (3601, 241), (50, 80), (8, 6)):
+        a, k = rng.random((n, 4, 3)), rng.random((m, 1, 3))
+        np.testing.assert_allclose(_convolve_same(a, k), fftconvolve(a, k, mode="same", axes=0), rtol=0, atol=1e-12)

@@ -771,7 +771,7 @@ def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G:
     for n in range(2, limit + 1):
         j_n = scattered_source(radiance, species, grid)
         if peak:
-            j_n += peak.source(radiance)
+            peak.add_source(radiance, j_n)
         j_ms += j_n
         series.orders = n
         size = float(np.abs(j_n).sum()) / max(float(np.abs(j_ms).sum()), 1e-300)
