@@ -14,9 +14,11 @@ comparison at 450, 550, 650 nm; the MC traces those three. Both radiances are di
 the profile's solar irradiance at the wavelength (the two profiles' band-averaged spectra
 differ slightly; the transfer is linear in it).
 
-MC: the NEE estimator; for the desert with ``sun_guide`` (new directions partly drawn
-around the sun: the coarse dust's forward peak, p(0) ~ 2e4 sr^-1, makes plain NEE
-heavy-tailed). Paths per direction from a pilot, for a relative standard error of
+MC: the NEE estimator with the sun up (``ESTIMATOR_SUN_UP``), the ``"proxy"`` estimator (line
+integrals toward the sunlit air, densities from a coarse copy of the profile) below the
+horizon (``ESTIMATOR_LOW_SUN``, sun < ``LOW_SUN_DEG``); ``--estimator`` overrides both. For
+the desert with ``sun_guide`` (new directions partly drawn around the sun: the coarse dust's
+forward peak, p(0) ~ 2e4 sr^-1, makes plain NEE heavy-tailed). Paths per direction from a pilot, for a relative standard error of
 ``--target-se`` (default 0.5 %) in every direction, capped by ``--max-paths``. Results are
 cached under ``--cache`` (default .cache/truth/), keyed by the scene, the views and the
 profile, and grow: a re-run adds paths where the target is not met yet. Runs copied into
@@ -65,8 +67,14 @@ MONTH = 6
 SUN_AZIMUTH = 180.0
 MC_WAVELENGTHS_NM = (450.0, 550.0, 650.0)
 MARCH_WAVELENGTHS_NM = tuple(np.arange(440.0, 661.0, 10.0))
-#: sun_guide of trace_radiance per aerosol (0: plain NEE)
+#: sun_guide of trace_radiance per aerosol (0: plain NEE); the "proxy" estimator: none
+#: (desert, sun -4: no better with 0.2, bench_truth.py pilot --pilot-guides 0,0.2)
 SUN_GUIDE = {"rural": 0.0, "desert": 0.2}
+SUN_GUIDE_PROXY = {"rural": 0.0, "desert": 0.0}
+#: trace_radiance's estimator per scene: NEE with the sun up and on the horizon, "proxy"
+#: below LOW_SUN_DEG (measured: docs/accuracy.md, "A cheaper estimator for the twilight
+#: scenes": 5.6-8.5x faster than NEE at -4 deg, no faster at 0 deg)
+ESTIMATOR_SUN_UP, ESTIMATOR_LOW_SUN, LOW_SUN_DEG = "nee", "proxy", 0.0
 QUALITY_NAMES = ("preview", "final", "reference")
 TOL_MEDIAN, TOL_WORST = 0.005, 0.015
 DOC = os.path.join(_HERE, "..", "docs", "accuracy.md")
@@ -116,9 +124,18 @@ def sources_hash():
     return h.hexdigest()[:10]
 
 
+def estimator_for(elev, override=None):
+    """The Monte Carlo estimator of a scene at sun elevation ``elev`` (deg)."""
+    if override:
+        return override
+    return ESTIMATOR_LOW_SUN if float(elev) < LOW_SUN_DEG else ESTIMATOR_SUN_UP
+
+
 class Scene:
-    def __init__(self, aerosol, elev, cache):
+    def __init__(self, aerosol, elev, cache, estimator=None):
         self.aerosol, self.elev, self.cache = aerosol, float(elev), cache
+        self.estimator = estimator_for(elev, estimator)
+        self.sun_guide = (SUN_GUIDE_PROXY if self.estimator == "proxy" else SUN_GUIDE)[aerosol]
         self.atm = atmosphere(aerosol)
         self.views = view_set(self.elev)
         self.dirs = view_directions(self.views, SUN_AZIMUTH)
@@ -130,7 +147,8 @@ class Scene:
 
     def mc_file(self, prof):
         key = hashlib.sha1(np.round(self.views, 3).tobytes()).hexdigest()[:8]
-        return os.path.join(self.cache, f"mc_{self.name}_{key}_{_profile_hash(prof)}_g{SUN_GUIDE[self.aerosol]:g}.npz")
+        est = "" if self.estimator == "nee" else f"_{self.estimator}"  # NEE runs keep their names
+        return os.path.join(self.cache, f"mc_{self.name}_{key}_{_profile_hash(prof)}_g{self.sun_guide:g}{est}.npz")
 
     def load_mc(self):
         prof = self.mc_profile()
@@ -172,13 +190,13 @@ def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=print):
     if mc is None:
         mc = dict(mean=np.zeros((nd, nw)), se=np.zeros((nd, nw)), n=np.zeros(nd, dtype=np.int64),
                   seconds=np.float64(0.0), seeds=np.zeros(0, dtype=np.int64), views=scene.views)
-    guide = SUN_GUIDE[scene.aerosol]
+    guide = scene.sun_guide
     t0 = time.perf_counter()
     seed = int(mc["seeds"].max()) + 1 if mc["seeds"].size else 1
     if mc["n"].min() == 0:
         rows = np.flatnonzero(mc["n"] == 0)
         res = trace_radiance(prof, scene.dirs[rows], scene.elev, SUN_AZIMUTH, n_paths=pilot_paths, seed=seed,
-                             sun_guide=guide)
+                             sun_guide=guide, estimator=scene.estimator)
         _merge(mc, rows, res, pilot_paths, seed)
         scene.save_mc(prof, mc)
         seed += 1
@@ -204,7 +222,7 @@ def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=print):
             rows = np.flatnonzero(todo & (np.ceil(np.log2(np.maximum(add, 1))) == gexp))
             n = int(np.max(add[rows]))
             res = trace_radiance(prof, scene.dirs[rows], scene.elev, SUN_AZIMUTH, n_paths=n, seed=seed,
-                                 sun_guide=guide)
+                                 sun_guide=guide, estimator=scene.estimator)
             _merge(mc, rows, res, n, seed)
             scene.save_mc(prof, mc)
             log(f"  {scene.name}: {rows.size} directions +{n} paths (seed {seed}, {res.time_s:.0f} s); "
@@ -292,21 +310,25 @@ def views_table(scene):
               + "/".join(f"{100 * x:.2f}" for x in se[i] / truth[i]))
 
 
-def pilot(scene, n_paths):
+def pilot(scene, n_paths, estimators=None, guides=None):
+    """Per estimator (default: the scene's), sun guide (default: 0 and the aerosol's) and
+    seed (1, 2): the time per path, the relative standard errors and the paths (and
+    minutes) the 0.5 % target needs, all directions of the scene."""
     prof = scene.mc_profile()
-    for guide in sorted({0.0, SUN_GUIDE[scene.aerosol]}):
-        for seed in (1, 2):
-            res = trace_radiance(prof, scene.dirs, scene.elev, SUN_AZIMUTH, n_paths=n_paths, seed=seed, sun_guide=guide)
-            rel = res.stderr / res.radiance
-            per_path_us = 1e6 * res.time_s / (n_paths * scene.dirs.shape[0] * prof.n_wavelengths)
-            need = paths_for_noise(rel, n_paths, 0.005, min_paths=0)
-            print(f"{scene.name} guide {guide} seed {seed}: {res.time_s:.1f} s ({per_path_us:.1f} us per path), "
-                  f"rel se median {100 * np.median(rel):.2f} % max {100 * rel.max():.2f} %; paths for 0.5 %: "
-                  f"median {int(np.median(need))}, max {need.max()}, total {need.sum()} "
-                  f"(~{need.sum() * prof.n_wavelengths * per_path_us / 1e6 / 60:.1f} min)")
-            worst = np.argsort(-rel.max(axis=1))[:3]
-            for i in worst:
-                print(f"    view {scene.views[i]} rel se {np.round(100 * rel[i], 2)} radiance {res.radiance[i]}")
+    guides = sorted({0.0, scene.sun_guide}) if guides is None else guides
+    for estimator, guide, seed in ((e, g, s) for e in (estimators or [scene.estimator]) for g in guides for s in (1, 2)):
+        res = trace_radiance(prof, scene.dirs, scene.elev, SUN_AZIMUTH, n_paths=n_paths, seed=seed, sun_guide=guide,
+                             estimator=estimator)
+        rel = res.stderr / res.radiance
+        per_path_us = 1e6 * res.time_s / (n_paths * scene.dirs.shape[0] * prof.n_wavelengths)
+        need = paths_for_noise(rel, n_paths, 0.005, min_paths=0)
+        print(f"{scene.name} {estimator} guide {guide} seed {seed}: {res.time_s:.1f} s ({per_path_us:.1f} us per path), "
+              f"rel se median {100 * np.median(rel):.2f} % max {100 * rel.max():.2f} %; paths for 0.5 %: "
+              f"median {int(np.median(need))}, max {need.max()}, total {need.sum()} "
+              f"(~{need.sum() * prof.n_wavelengths * per_path_us / 1e6 / 60:.1f} min)", flush=True)
+        worst = np.argsort(-rel.max(axis=1))[:3]
+        for i in worst:
+            print(f"    view {scene.views[i]} rel se {np.round(100 * rel[i], 2)} radiance {res.radiance[i]}")
 
 
 # ---------------------------------------------------------------------------------------
@@ -429,6 +451,11 @@ def main(argv=None):
     ap.add_argument("--base", default="final", help="knobs: the preset the variants change")
     ap.add_argument("--variants", default="", help="knobs: ';'-separated 'field=value,...' variants")
     ap.add_argument("--scenes", default="all")
+    ap.add_argument("--pilot-estimators", default=None, help="pilot: comma list of estimators to compare")
+    ap.add_argument("--pilot-guides", default=None, help="pilot: comma list of sun_guide values (default 0 and the "
+                    "aerosol's)")
+    ap.add_argument("--estimator", default=None, help="Monte Carlo estimator of every scene (default: nee with "
+                    f"the sun up, {ESTIMATOR_LOW_SUN} below {LOW_SUN_DEG:g} deg)")
     ap.add_argument("--cache", default=os.path.join(_HERE, "..", ".cache", "truth"))
     ap.add_argument("--target-se", type=float, default=0.005, help="relative MC standard error per direction")
     ap.add_argument("--max-paths", type=int, default=400_000, help="paths per direction and wavelength, at most")
@@ -438,10 +465,11 @@ def main(argv=None):
     ap.add_argument("--write-docs", action="store_true", help="write docs/accuracy.md's section and its plot")
     ap.add_argument("--json", default=None, help="write the rows here")
     a = ap.parse_args(argv)
-    scenes = [Scene(aer, el, a.cache) for aer, el in scenes_from(a.scenes)]
+    scenes = [Scene(aer, el, a.cache, a.estimator) for aer, el in scenes_from(a.scenes)]
     if a.what == "pilot":
         for sc in scenes:
-            pilot(sc, a.pilot_paths)
+            pilot(sc, a.pilot_paths, a.pilot_estimators and a.pilot_estimators.split(","),
+                  a.pilot_guides and [float(g) for g in a.pilot_guides.split(",")])
     elif a.what == "views":
         for sc in scenes:
             views_table(sc)
