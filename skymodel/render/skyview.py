@@ -24,7 +24,17 @@ node instead of 81), on two direction grids (as the sky-view LUT of Hillaire 202
   cap is interpolated bilinearly in (log angle, angle around): within
   :data:`CAP_RATIO_DEG` of the horizon the ratio exact / main grid (the main grid's
   crowded zenith nodes carry the horizon's steep gradient), elsewhere the logarithm of the
-  value (the aureole falls as a power of the angle). Pixels closer to the sun than
+  value (the aureole falls as a power of the angle). A cap whose lowest point is
+  :data:`CAP_RATIO_DEG` + :data:`CAP_CLEAR_MARGIN_DEG` or more above the horizon (a sun
+  above 17 degrees for ``final``'s 12-degree cap) is *clear*: it keeps every other node
+  (21 x 25 instead of 41 x 49 at ``final``, a quarter of the marching), and a pixel is
+  its single scattering plus the rest (multiple scattering, peak aureole), interpolated
+  apart: the rest's logarithm, and single scattering's ratio to a reference that carries
+  the phase functions' fall and ripples in the angle from the sun (the reduced spectrum
+  of one column's single scattering, E_sun sum_s p_s(gamma) tau_s, evaluated at each
+  pixel's angle; :meth:`SkyViewTable._phase_reference`). Against direct marching this
+  cuts the largest error of coarse desert dust's aureole under a high sun 4-12 fold with
+  a quarter of the nodes (docs/benchmarks.md, "A cheaper sun cap"). Pixels closer to the sun than
   :data:`CAP_EXACT_DEG`, closer to the horizon than :data:`CAP_HORIZON_DEG`, or whose four
   nodes are not all on their side of the horizon (a low sun's cap straddles the sky/ground
   edge) are marched exactly: a few thousand pixels of a 4096x2048 panorama.
@@ -48,7 +58,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Reduction", "SkyViewTable", "xyz_reduction", "rgb_reduction", "CAP_RADIAL", "CAP_AROUND",
-           "cap_radial_nodes", "TABLE_MIN_PIXELS"]
+           "CAP_CLEAR_MARGIN_DEG", "cap_radial_nodes", "TABLE_MIN_PIXELS"]
 
 #: Nodes of the sun cap's polar grid: from the sun outward (log-spaced, for a cap of
 #: :data:`CAP_RADIAL_DEG`; :func:`cap_radial_nodes` for other caps) and around it
@@ -66,6 +76,9 @@ CAP_HORIZON_DEG = 0.5
 #: Within this many degrees of the horizon the cap holds exact / main grid (the main grid's
 #: crowded zenith nodes carry the horizon's steep gradient), elsewhere the exact values.
 CAP_RATIO_DEG = 4.0
+#: A cap whose lowest point is at least CAP_RATIO_DEG + this many degrees above the horizon
+#: is "clear": it keeps every other node of the full grid (:class:`SkyViewTable`).
+CAP_CLEAR_MARGIN_DEG = 1.0
 #: Images with at least this many valid pixels go through the table in ``render_sky``'s
 #: ``method="auto"``: below it the table's own nodes (about 12 000 at ``final``) are not
 #: fewer than the pixels near the sun it saves marching.
@@ -134,7 +147,8 @@ class SkyViewTable:
     the sun cap (module doc). ``lookup(directions)`` gives (N, K) values; ``timings`` the
     seconds spent building the cap (the main grid is the marcher's)."""
 
-    def __init__(self, marcher, reduction: Reduction, cap_radial: int | None = None, cap_around: int = CAP_AROUND):
+    def __init__(self, marcher, reduction: Reduction, cap_radial: int | None = None, cap_around: int = CAP_AROUND,
+                 coarse_when_clear: bool = True):
         if marcher._grid is None:
             raise ValueError("the sky-view table needs a marcher with a direction grid (settings.exact is False)")
         t0 = time.perf_counter()
@@ -158,6 +172,11 @@ class SkyViewTable:
         self.e2 = np.cross(self.sun, self.e1)
         if cap_radial is None:
             cap_radial = cap_radial_nodes(marcher.settings.sun_exact_deg)
+        # a cap clear of the horizon's band holds no steep gradient: every other node suffices
+        self.clear = bool(np.arccos(np.clip(self.sun[2], -1.0, 1.0)) + self.cap_max
+                          < self.horizon - np.radians(CAP_RATIO_DEG + CAP_CLEAR_MARGIN_DEG))
+        if self.clear and coarse_when_clear:
+            cap_radial, cap_around = (int(cap_radial) + 1) // 2, (int(cap_around) + 1) // 2
         self.cap_u = np.linspace(0.0, 1.0, int(cap_radial))
         self.cap_psi = np.linspace(0.0, np.pi, int(cap_around))
         self.cap_min = np.radians(CAP_EXACT_DEG)
@@ -168,7 +187,8 @@ class SkyViewTable:
              * (np.cos(pp)[..., None] * self.e1 + np.sin(pp)[..., None] * self.e2)).reshape(-1, 3)
         zen_d = np.arccos(np.clip(d[:, 2], -1.0, 1.0))
         below_d = zen_d >= self.horizon
-        exact = self._march(d)
+        single, rest = self._march_split(d)
+        exact = single + rest
         base = self._main(d, zen_d, below_d)
         # the cap holds log(exact / main grid): 0 where the main grid is already right, smooth
         # across the horizon's steep gradient (which the main grid's crowded zenith nodes carry)
@@ -177,6 +197,15 @@ class SkyViewTable:
         self.log_ratio = np.log(ratio).reshape(gg.shape + (-1,))
         self.log_cap = np.log(np.where(exact > 0, exact, 1.0)).reshape(gg.shape + (-1,))
         self.cap_positive = np.all(exact > 0, axis=-1).reshape(gg.shape)
+        # away from the horizon, single scattering over its reference (:meth:`_phase_reference`,
+        # which carries the phase functions' fall and ripples in the angle from the sun) and
+        # the rest (multiple scattering, the peak aureole, the ground), each smooth, apart
+        self.ref_gamma, self.ref_values = self._phase_reference()
+        ref = self._reference(gg.ravel())
+        split = (single > 0) & (rest > 0) & (ref > 0)
+        self.log_single = np.log(np.where(split, single, 1.0) / np.where(split, ref, 1.0)).reshape(gg.shape + (-1,))
+        self.log_rest = np.log(np.where(split, rest, 1.0)).reshape(gg.shape + (-1,))
+        self.cap_split = np.all(split, axis=-1).reshape(gg.shape) & self.clear
         self.cap_below = below_d.reshape(gg.shape)
         self.timings = {"cap_s": time.perf_counter() - t0, "cap_nodes": int(d.shape[0])}
         self.exact_pixels = 0
@@ -191,6 +220,41 @@ class SkyViewTable:
             return np.zeros((0, self.sky.shape[-1]))
         parts = self.marcher.exact_in_threads(d)
         return np.concatenate([self.reduction.linear(s + mu + g) for s, mu, g in parts])
+
+    def _march_split(self, d):
+        """Exactly marched, reduced single scattering and the rest (multiple + ground),
+        each (N, K), of directions d (N, 3)."""
+        parts = self.marcher.exact_in_threads(d)
+        red = self.reduction.linear
+        return (np.concatenate([red(s) for s, _, _ in parts]), np.concatenate([red(mu + g) for _, mu, g in parts]))
+
+    def _phase_reference(self):
+        """The shape of single scattering in the angle gamma from the sun: the reduced
+        spectrum of sunlight scattered once by a vertical column of the medium,
+        E_sun (p_R(gamma) tau_R + sum_r p_r(gamma) tau_r) (tau: each species' vertical
+        scattering optical depth), tabulated at the angles of the aerosol phase tables
+        inside the cap (between which the phase functions are linear in the angle, as
+        ``aerosol_phase_at`` interpolates them) and at 256 even steps. Returns (gamma [rad]
+        (M,), values (M, K))."""
+        m = self.marcher
+        prof, med = m.profile, m.medium
+        deg = np.asarray(prof.aerosol_phase_angles_deg, float)
+        lo, hi = np.degrees(self.cap_min), np.degrees(self.cap_max)
+        gam = np.radians(np.unique(np.concatenate([deg[(deg > lo) & (deg < hi)], np.linspace(lo, hi, 256)])))
+        z = np.linspace(0.0, m.top, 801)
+        dz = np.full(z.size, z[1] - z[0])
+        dz[[0, -1]] *= 0.5  # the trapezoid rule
+        c = np.cos(gam)
+        spec = prof.rayleigh_phase(c) * (dz @ med.rayleigh.at(z))
+        pa = prof.aerosol_phase_at(c)  # (R, M, W)
+        for r, lr in enumerate(med.aerosol):
+            spec = spec + pa[r] * (dz @ lr.at(z))
+        return gam, self.reduction.linear(spec * prof.solar_irradiance)
+
+    def _reference(self, gamma):
+        """The reference (:meth:`_phase_reference`) at angles ``gamma`` [rad] from the sun, (N, K)."""
+        g = np.clip(gamma, self.ref_gamma[0], self.ref_gamma[-1])
+        return np.stack([np.interp(g, self.ref_gamma, v) for v in self.ref_values.T], axis=-1)
 
     @property
     def n_nodes(self) -> int:
@@ -238,11 +302,19 @@ class SkyViewTable:
             cp = self.cap_positive
             pos = cp[i, j] & cp[i + 1, j] & cp[i, j + 1] & cp[i + 1, j + 1]
             low = np.abs(zen[idx] - self.horizon) < np.radians(CAP_RATIO_DEG)
-            for sel, tab in ((same & low, self.log_ratio), (same & ~low & pos, self.log_cap)):
+            cs = self.cap_split
+            split = same & ~low & cs[i, j] & cs[i + 1, j] & cs[i, j + 1] & cs[i + 1, j + 1]
+            ref = self._reference(gam[split])
+            ok = np.all(ref > 0, axis=-1)
+            split[np.nonzero(split)[0][~ok]] = False
+            for sel, tab in ((same & low, self.log_ratio), (same & ~low & ~split & pos, self.log_cap)):
                 k = idx[sel]
                 v = np.exp(_bilinear(tab, i[sel], fi[sel], j[sel], fj[sel]))
                 out[k] = out[k] * v if tab is self.log_ratio else v
-            same &= low | pos
+            a = (i[split], fi[split], j[split], fj[split])
+            out[idx[split]] = (np.exp(_bilinear(self.log_single, *a)) * ref[ok]
+                               + np.exp(_bilinear(self.log_rest, *a)))
+            same &= low | pos | split
             exact = idx[~same]  # next to the sun, the horizon, or with nodes across the horizon
             if exact.size:
                 out[exact] = self._march(d[exact])
