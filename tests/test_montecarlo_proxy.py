@@ -12,24 +12,14 @@ import pytest
 
 from skymodel.errors import SkymodelInputError
 from skymodel.render.rays import direction_from_angles, sun_direction
-from skymodel.validation import montecarlo as mcm
 from skymodel.validation.montecarlo import _Line, _Medium, _ProxyLine, _proxy_medium, trace_radiance
 
-from test_montecarlo import _assert_estimators_agree, synthetic_profile
+from test_montecarlo import _assert_estimators_agree, coarse_guide, synthetic_profile  # noqa: F401 (a fixture)
 
 
 @pytest.fixture(scope="module")
 def profile():
     return synthetic_profile()
-
-
-@pytest.fixture
-def coarse_guide(monkeypatch):
-    """The direction guide at a lower resolution (same code, faster), as in test_montecarlo."""
-    x = np.linspace(-1.0, 1.0, 17)
-    monkeypatch.setattr(mcm, "_GUIDE_EL_EDGES", np.radians(90.0 * np.sign(x) * np.abs(x) ** 1.5))
-    monkeypatch.setattr(mcm, "_GUIDE_PHI_EDGES", np.linspace(0.0, np.pi, 7))
-    monkeypatch.setattr(mcm, "_GUIDE_ALTITUDES_M", np.array([500.0, 5000.0, 20000.0]))
 
 
 def test_proxy_medium_is_coarse_and_close(profile):

@@ -549,6 +549,23 @@ def _guide_pdf(med: _Medium, d, w, sun):
         return (med.guide_weight[:, w] * med.aerosol_phase(d @ sun, w) / np.where(mass > 0, mass, 1.0)).sum(axis=0)
 
 
+def _guided_ground_bounce(med: _Medium, nrm, w, sun, alpha, rng):
+    """New directions off the Lambertian ground (outward normals ``nrm``): cosine-weighted,
+    a fraction ``alpha`` drawn from the sun guide instead, and each direction's exact weight
+    (cosine density over the mixture's). Returns (directions (N, 3), weights (N,))."""
+    n = nrm.shape[0]
+    guided = rng.random(n) < alpha
+    cos_t = np.sqrt(rng.random(n))
+    base = nrm.copy()
+    if np.any(guided):
+        cos_t[guided] = _sample_guide_cos(med, w[guided], rng)
+        base[guided] = sun
+    d_new = _rotate(base, cos_t, rng)
+    p_cos = np.maximum(_rowdot(d_new, nrm), 0.0) / np.pi
+    q = (1.0 - alpha) * p_cos + alpha * _guide_pdf(med, d_new, w, sun)
+    return d_new, np.where(q > 0.0, p_cos / np.where(q > 0.0, q, 1.0), 0.0)
+
+
 def _guided_direction(med: _Medium, d_in, w, sig_sc, sun, alpha, rng):
     """New directions after air collisions, drawn from the defensive mixture
     q = (1 - alpha) x the physical phase function (the scatterer chosen from sig_sc, as
@@ -656,16 +673,8 @@ def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng, sun_guide
                 contrib[idx[li]] += beta[li] * a[lit] / np.pi * mu0[lit] * np.exp(-tau) * med.e_sun[wg[lit]]
             beta[gi] *= a
             if sun_guide > 0.0:  # cosine-weighted mixed with the sun guide, exact weight
-                guided = rng.random(gi.size) < sun_guide
-                cos_t = np.sqrt(rng.random(gi.size))
-                base = nrm.copy()
-                if np.any(guided):
-                    cos_t[guided] = _sample_guide_cos(med, wg[guided], rng)
-                    base[guided] = sun
-                d_new = _rotate(base, cos_t, rng)
-                p_cos = np.maximum(_rowdot(d_new, nrm), 0.0) / np.pi
-                q = (1.0 - sun_guide) * p_cos + sun_guide * _guide_pdf(med, d_new, wg, sun)
-                beta[gi] *= np.where(q > 0.0, p_cos / np.where(q > 0.0, q, 1.0), 0.0)
+                d_new, wgt = _guided_ground_bounce(med, nrm, wg, sun, sun_guide, rng)
+                beta[gi] *= wgt
                 nxt_D[gi] = d_new
             else:
                 u1 = rng.random(gi.size)
@@ -1046,17 +1055,8 @@ def _scatter_guided(med, P, D, Wl, ev, beta, J, rng, alpha, sun):
         Pg, wg = P[gi], Wl[gi]
         nrm = Pg / np.linalg.norm(Pg, axis=1, keepdims=True)
         beta[gi] *= med.albedo[wg]
-        guided = rng.random(gi.size) < alpha
-        cos_t = np.sqrt(rng.random(gi.size))
-        base = nrm.copy()
-        if np.any(guided):
-            cos_t[guided] = _sample_guide_cos(med, wg[guided], rng)
-            base[guided] = sun
-        d_new = _rotate(base, cos_t, rng)
-        p_cos = np.maximum(_rowdot(d_new, nrm), 0.0) / np.pi
-        q = (1.0 - alpha) * p_cos + alpha * _guide_pdf(med, d_new, wg, sun)
-        beta[gi] *= np.where(q > 0.0, p_cos / np.where(q > 0.0, q, 1.0), 0.0)
-        nxt[gi] = d_new
+        nxt[gi], wgt = _guided_ground_bounce(med, nrm, wg, sun, alpha, rng)
+        beta[gi] *= wgt
         J[gi] = 0
     return nxt
 
