@@ -73,11 +73,14 @@ def main(argv=None) -> int:
 
     import numpy as np
 
+    from skymodel import scene
     from skymodel.cli.render import REDUCED_BAND_PIXELS, REDUCED_DTYPE
+    from skymodel.render.cameras import make_camera
     from skymodel.render.memory import GIB, estimate_render_memory
     from skymodel.wavelengths import default_wavelengths
 
     wl = default_wavelengths(args.step)
+    sun_deg = float(scene.default("sun_elevation"))  # skymodel render's sun without --time or --sun-elevation
     rows = ["| quality | image | wavelengths | estimate GiB (tables / bands / image / base) | peak RSS GiB | "
             "estimate / peak | render s |", "|---|---|---|---|---|---|---|"]
     ratios = []
@@ -86,10 +89,13 @@ def main(argv=None) -> int:
             quality, size = case.split(":")
             w, h = (int(v) for v in size.split("x"))
             # as skymodel render estimates it: the cube only with --spectral, else 3 values a pixel
+            camera = make_camera(args.camera or scene.default("camera"), w, h, n_wavelengths=1,
+                                 max_memory_bytes=1 << 62)  # the render's camera (the guard counts its pixels)
             est = estimate_render_memory(w, h, wl.size, quality, wavelengths_nm=wl,
                                          image_channels=None if args.spectral else 3,
                                          band_pixels=None if args.spectral else REDUCED_BAND_PIXELS,
-                                         image_value_bytes=8 if args.spectral else np.dtype(REDUCED_DTYPE).itemsize)
+                                         image_value_bytes=8 if args.spectral else np.dtype(REDUCED_DTYPE).itemsize,
+                                         sun_elevation_deg=sun_deg, camera=camera)
             peak, secs = measure(quality, w, h, args.step, folder, args.spectral, args.camera)
             ratio = est.total / peak
             ratios.append(ratio)
@@ -101,7 +107,7 @@ def main(argv=None) -> int:
                f"(the guard's target: 0.75 .. 1.25).")
     body = "\n".join([
         f"`skymodel render{' --spectral' if args.spectral else ''}{' --camera ' + args.camera if args.camera else ''}` (EXR + PNG{' + NPZ' if args.spectral else ''}, "
-        "rural, sun 25 deg) in a child process per row; the peak is the "
+        f"rural, sun {sun_deg:g} deg, the estimate given that sun) in a child process per row; the peak is the "
         "child's `ru_maxrss`; the estimate is `skymodel.render.memory.estimate_render_memory`, which "
         "`render_sky` and `skymodel render` compare with `--max-memory` (GiB, default "
         "4) before any work.", "",

@@ -267,3 +267,30 @@ def test_directions_of_a_band_of_rows_are_those_of_the_whole_image(name):
         dr, vr = cam.directions_rows(start, stop)
         np.testing.assert_array_equal(dr, d[start:stop])
         np.testing.assert_array_equal(vr, valid[start:stop])
+
+
+@pytest.mark.parametrize("name, w, h, opts", [("equirectangular", 512, 256, {}), ("equirectangular", 96, 48, {}),
+                                              ("dome", 360, 120, {"below_horizon_deg": 10.0})])
+@pytest.mark.parametrize("zenith, angle", [(65.0, 8.0), (78.0, 12.0), (3.0, 8.0), (95.0, 2.0), (0.0, 5.0)])
+def test_panorama_counts_the_pixels_near_a_direction(name, w, h, opts, zenith, angle):
+    """The memory guard's count of pixels near the sun, row by row without any direction, is
+    the count over the pixels' directions (up to one pixel per row for the rounding up); a
+    cap around the pole (zenith 3, 8 degrees) takes whole rows."""
+    cam = make_camera(name, w, h, **opts)
+    d, _ = cam.directions()
+    zs = np.radians(zenith)
+    sun = np.array([np.sin(zs), 0.0, np.cos(zs)])
+    exact = int((d @ sun >= np.cos(np.radians(angle))).sum())
+    counted = cam.pixels_near(zenith, angle)
+    assert exact <= counted <= exact + 2 * h
+
+
+def test_other_cameras_bound_the_pixels_near_a_direction():
+    """A camera without a row formula counts the share 1 - cos(angle) of its pixels, a bound."""
+    cam = make_camera("fisheye", 256, 256)
+    d, valid = cam.directions()
+    for zenith in (0.0, 45.0, 80.0):
+        zs = np.radians(zenith)
+        sun = np.array([0.0, np.sin(zs), np.cos(zs)])
+        exact = int(((d @ sun >= np.cos(np.radians(8.0))) & valid).sum())
+        assert exact <= cam.pixels_near(zenith, 8.0)

@@ -62,7 +62,7 @@ def test_render_sky_reduced_checks_render_skys_memory_estimate_before_any_work(c
                                   (xyz_reduction(prof.wavelengths_nm), "direct", False),
                                   (lambda r, w: spectral_to_rgb(r, w), "auto", False)):
         est = estimate_render_memory(8192, 4096, n_wl, "final", wavelengths_nm=prof.wavelengths_nm, image_channels=3,
-                                     band_pixels=4096, sky_view_table=table)
+                                     band_pixels=4096, sky_view_table=table, sun_elevation_deg=20.0, camera=cam)
         limit = 0.99 * est.total / GIB
         with pytest.raises(SkymodelInputError) as e:
             render_sky_reduced(prof, cam, 20.0, reduce, 3, quality="final", band_pixels=4096, method=method,

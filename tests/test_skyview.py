@@ -114,10 +114,16 @@ def test_cap_keeps_its_log_spacing_when_wider(skies):
     prof, sol = skies["rural"]
     s12 = replace(SETTINGS, sun_exact_deg=12.0)
     m = SkyMarcher(prof, 30.0, 180.0, 0.0, s12, solution=replace(sol, settings=s12, key=optics_key(prof, s12)))
-    assert SkyViewTable(m, xyz_reduction(WL)).cap_u.size == 21
+    clear = SkyViewTable(m, xyz_reduction(WL))
+    assert clear.cap_u.size == 21
     low = SkyMarcher(prof, 10.0, 180.0, 0.0, s12, solution=replace(sol, settings=s12, key=optics_key(prof, s12)))
     table = SkyViewTable(low, xyz_reduction(WL))
     assert not table.clear and (table.cap_u.size, table.cap_psi.size) == (41, CAP_AROUND)
+    # the memory guard counts the directions each table marched, given the sun (none: the full cap)
+    from skymodel.render.memory import _cap_nodes
+
+    assert _cap_nodes(12.0, 30.0) == clear.timings["cap_nodes"] == 21 * 25
+    assert _cap_nodes(12.0, 10.0) == _cap_nodes(12.0, None) == table.timings["cap_nodes"] == 41 * CAP_AROUND
 
 
 def test_clear_cap_keeps_every_other_node_and_splits_single_scattering(skies):

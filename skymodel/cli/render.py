@@ -92,7 +92,8 @@ def cmd_render(args) -> int:
     camera = make_camera(args.camera, width, height, n_wavelengths=kept, max_memory_bytes=limit_gib * 1024**3)
     check_render_memory(camera.width, camera.height, wl.size, settings, limit_gib, wavelengths_nm=wl,
                         image_channels=kept, band_pixels=None if args.spectral else REDUCED_BAND_PIXELS,
-                        image_value_bytes=8 if args.spectral else np.dtype(REDUCED_DTYPE).itemsize)
+                        image_value_bytes=8 if args.spectral else np.dtype(REDUCED_DTYPE).itemsize,
+                        sun_elevation_deg=sun.elevation_deg, camera=camera)
     png = None if args.no_png else (args.png or (str(args.out).rsplit(".", 1)[0] + ".png"))
     # validate every output path before the (long) render, so nothing is half-written
     for key, path, ext in (("out", args.out, ".exr"), ("png", png, ".png"), ("spectral", args.spectral, ".npz")):

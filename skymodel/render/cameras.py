@@ -200,6 +200,13 @@ class Camera:
         """Solid angle (sr) represented by each pixel, (H, W); 0 where masked."""
         raise NotImplementedError
 
+    def pixels_near(self, zenith_deg: float, angle_deg: float) -> int:
+        """How many pixels look within ``angle_deg`` [deg] of a direction at ``zenith_deg``
+        [deg] (the memory guard's pixels marched near the sun), without computing any
+        pixel's direction. Here a bound: the share 1 - cos(angle) of all pixels, that of a
+        hemisphere of equal-area pixels; the panoramas count their rows exactly."""
+        return int(math.ceil(self.width * self.height * (1.0 - math.cos(math.radians(float(angle_deg))))))
+
     def project(self, directions):
         """``(xy, visible)``: continuous pixel coordinates (..., 2) as ``(column, row)``
         with pixel centres at integers, and whether the direction is inside the image
@@ -237,6 +244,21 @@ class _PanoramaCamera(Camera):
 
     def valid_mask(self):
         return np.ones(self.shape, dtype=bool)
+
+    def pixels_near(self, zenith_deg: float, angle_deg: float) -> int:
+        """Pixels within ``angle_deg`` [deg] of a direction at ``zenith_deg`` [deg], row by row:
+        a row at zenith z holds those within the azimuth half-width dphi where
+        cos z cos zs + sin z sin zs cos dphi = cos(angle), ``width * dphi / pi`` of them (the
+        columns span 360 degrees), rounded up."""
+        z = np.radians(self._row_zeniths())
+        zs, cos_a = math.radians(float(zenith_deg)), math.cos(math.radians(float(angle_deg)))
+        near = np.cos(z) * math.cos(zs)
+        far = np.sin(z) * math.sin(zs)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c = np.where(far > 1e-12, (cos_a - near) / np.where(far > 1e-12, far, 1.0),
+                         np.where(near >= cos_a, -1.0, 2.0))
+        half = np.arccos(np.clip(c, -1.0, 1.0)) * (c <= 1.0)  # 0 where the row misses the cap
+        return int(np.ceil(self.width * half / np.pi).sum())
 
 
 class EquirectangularCamera(_PanoramaCamera):

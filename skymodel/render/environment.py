@@ -454,7 +454,8 @@ def render_environment(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: fl
                                            earth_shadow=bool(earth_shadow))
         # the memory guard of render_sky_reduced, before the solve rather than after it
         check_render_memory(cam.width, cam.height, wl.size, settings, wavelengths_nm=wl, image_channels=3,
-                            band_pixels=ENV_BAND_PIXELS)
+                            band_pixels=ENV_BAND_PIXELS, sun_elevation_deg=sun_elevation_deg,
+                            camera=cam)
         # only the sun or the time changed since the last build: the multiple-scattering
         # solution of this atmosphere is reused (memory, then the cache folder's solutions/)
         if solutions is None:

@@ -14,7 +14,10 @@ the largest phase, not the sum:
   marched exactly) x view_steps x n_wl`` float64 values (the sky-view table's sun cap, or the
   pixels near the sun of a render marched directly), :data:`BAND_COPIES` of them alive at once
   over the marcher's threads (:meth:`skymodel.render.marcher.SkyMarcher._exact`), with the tables
-  kept, and :data:`SKYVIEW_TABLE_BYTES` more while the sky-view table is built;
+  kept, and :data:`SKYVIEW_TABLE_BYTES` more while the sky-view table is built or
+  :data:`DIRECT_MARCH_BYTES` in a render marched directly; the sun cap of a sun clear of the
+  horizon marches a quarter of its nodes, the pixels near the sun are counted by the camera,
+  when the caller gives the sun and the camera;
 * ``image``: the float64 spectral cube ``H x W x n_wl``, :data:`IMAGE_COPIES` of them
   (single, multiple and ground parts, their sum, the image, the writers' conversions), or
   :data:`NEAR_SUN_CUBES` of them while the pixels near the sun are marched in bands, with the tables kept;
@@ -76,6 +79,11 @@ BAND_COPIES = 20.0
 #: (measured: the colour render's preview 1024x512 peak over its 512x256 peak, 0.17-0.22 GiB at 9fe0b71;
 #: at final the table's renders peaked at 1.15-1.21 GiB against 1.15 for the marched 512x256: 0.15 splits them).
 SKYVIEW_TABLE_BYTES = 0.15 * GIB
+#: A direct march of the pixels near the sun (no sky-view table) besides its bands [bytes]: the march's
+#: state on entry and the threads' unreturned pages (measured at dba4305 with the pixels counted by the
+#: camera: the colour preview 512x256 equirectangular at sun 25 peaked at 0.41-0.49 GiB over 6 runs against
+#: 0.33 estimated without it; ``tracemalloc`` traced 0.06 GiB at the march's entry and 0.29 at its peak).
+DIRECT_MARCH_BYTES = 0.12 * GIB
 #: float64 spectral cubes (H x W x n_wl) alive at once, render and writers (measured).
 IMAGE_COPIES = 6.0
 #: ... when the image is resampled from the sky-view table (measured with ``skymodel render --spectral`` at
@@ -156,17 +164,24 @@ def _table_min_pixels() -> int:
     return int(TABLE_MIN_PIXELS)
 
 
-def _cap_nodes(sun_exact_deg: float) -> int:
-    """Directions the sky-view table's sun cap marches exactly."""
-    from skymodel.render.skyview import CAP_AROUND, cap_radial_nodes
+def _cap_nodes(sun_exact_deg: float, sun_elevation_deg=None) -> int:
+    """Directions the sky-view table's sun cap marches exactly: a cap clear of the horizon
+    (:func:`skymodel.render.skyview.cap_is_clear`, judged against an observer on the ground,
+    whose horizon is the lowest) keeps every other node; ``sun_elevation_deg`` None [deg]:
+    the full cap (the larger)."""
+    from skymodel.render.skyview import cap_is_clear, cap_shape
 
-    return int(cap_radial_nodes(sun_exact_deg)) * int(CAP_AROUND)
+    clear = sun_elevation_deg is not None and cap_is_clear(math.radians(90.0 - float(sun_elevation_deg)),
+                                                            sun_exact_deg, math.pi / 2)
+    radial, around = cap_shape(sun_exact_deg, clear)
+    return int(radial) * int(around)
 
 
 def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=None, *, wavelengths_nm=None,
                            n_pixels: int | None = None, image_channels: int | None = None,
                            band_pixels: int | None = None, sky_view_table: bool | None = None,
-                           image_value_bytes: int = 8) -> MemoryEstimate:
+                           image_value_bytes: int = 8, sun_elevation_deg: float | None = None,
+                           camera=None) -> MemoryEstimate:
     """Estimated peak resident memory of rendering ``width x height`` pixels at
     ``n_wavelengths`` wavelengths with ``quality`` (a preset name, a MarchSettings, or
     None for the default quality); ``wavelengths_nm`` (optional) gives the solver's
@@ -178,7 +193,12 @@ def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=
     ``sky_view_table=False``: every pixel is marched whatever the size, as a render with
     ``method="direct"`` does; None: by the size); ``image_value_bytes``: bytes of one value
     of the kept image (8: float64; 4: the float32 image of ``render_sky_reduced(dtype=np.float32)``,
-    as ``skymodel render`` keeps its colour image)."""
+    as ``skymodel render`` keeps its colour image); ``sun_elevation_deg`` [deg]: the sun's, which
+    decides how many directions the sky-view table's sun cap marches (a cap clear of the horizon
+    marches a quarter of them); None counts the full cap, the larger estimate; ``camera``: the
+    :class:`~skymodel.render.cameras.Camera`: with the sun, the pixels a direct march evaluates
+    near the sun are counted (:meth:`~skymodel.render.cameras.Camera.pixels_near`), otherwise
+    the share ``1 - cos(sun_exact_deg)`` of all pixels (a hemisphere's; about twice a panorama's)."""
     from skymodel.render.quality import quality_settings
 
     s = quality_settings(quality)
@@ -194,12 +214,19 @@ def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=
     table = not s.exact and pixels >= _table_min_pixels() and sky_view_table is not False
     # with a direction grid the pixels near the sun are still marched, in bands, while the
     # three parts of the cube are held (a hemisphere camera: up to 1 - cos(sun_exact) of them)
-    near = pixels if s.exact else math.ceil(pixels * (1.0 - math.cos(math.radians(s.sun_exact_deg))))
-    exact_dirs = _cap_nodes(s.sun_exact_deg) if table else near  # the directions marched exactly
+    if s.exact:
+        near = pixels
+    elif camera is not None and sun_elevation_deg is not None:
+        near = min(pixels, int(camera.pixels_near(90.0 - float(sun_elevation_deg), s.sun_exact_deg)))
+    else:
+        near = math.ceil(pixels * (1.0 - math.cos(math.radians(s.sun_exact_deg))))
+    exact_dirs = _cap_nodes(s.sun_exact_deg, sun_elevation_deg) if table else near  # the directions marched exactly
     marched = max(min(s.chunk, _march_piece(), max(exact_dirs, 1)), 1)
     bands = kept + BAND_COPIES * marched * per_direction
     if table:  # the sky-view table's build: its nodes marched (the grid, the sun's cap) and their totals
         bands += SKYVIEW_TABLE_BYTES
+    else:
+        bands += DIRECT_MARCH_BYTES
     cube = w * h * (n_wl if image_channels is None else int(image_channels)) * float(image_value_bytes)
     near_bands = BAND_COPIES * min(s.chunk, _march_piece(), near) * per_direction
     if table and image_channels is not None and int(image_channels) < n_wl:
@@ -230,13 +257,16 @@ def limit_bytes(max_memory_gib=None) -> float:
 def check_render_memory(width: int, height: int, n_wavelengths: int, quality=None, max_memory_gib=None, *,
                         wavelengths_nm=None, image_channels: int | None = None,
                         band_pixels: int | None = None, sky_view_table: bool | None = None,
-                        image_value_bytes: int = 8) -> MemoryEstimate:
+                        image_value_bytes: int = 8, sun_elevation_deg: float | None = None,
+                        camera=None) -> MemoryEstimate:
     """The estimate (:func:`estimate_render_memory`), or :class:`SkymodelInputError`
-    naming ``max_memory`` when it exceeds ``max_memory_gib`` [GiB] (None: the default)."""
+    naming ``max_memory`` when it exceeds ``max_memory_gib`` [GiB] (None: the default);
+    ``sun_elevation_deg`` [deg] and ``camera`` as there (None: the larger estimates)."""
     limit = limit_bytes(max_memory_gib)
     est = estimate_render_memory(width, height, n_wavelengths, quality, wavelengths_nm=wavelengths_nm,
                                  image_channels=image_channels, band_pixels=band_pixels,
-                                 sky_view_table=sky_view_table, image_value_bytes=image_value_bytes)
+                                 sky_view_table=sky_view_table, image_value_bytes=image_value_bytes,
+                                 sun_elevation_deg=sun_elevation_deg, camera=camera)
     if est.total > limit:
         gib = limit / GIB
         raise SkymodelInputError(

@@ -126,7 +126,8 @@ def render_sky(profile, camera: Camera, sun_elevation_deg: float, sun_azimuth_de
     sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings = settings
     method = _check_method(method)
     check_render_memory(camera.width, camera.height, profile.wavelengths_nm.size, settings, max_memory_gib,
-                        wavelengths_nm=profile.wavelengths_nm, sky_view_table=None if method != "direct" else False)
+                        wavelengths_nm=profile.wavelengths_nm, sky_view_table=None if method != "direct" else False,
+                        sun_elevation_deg=sun_elevation_deg, camera=camera)
     t0 = time.perf_counter()
     solution = _solution(profile, settings, solution, solutions, progress)
     marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,
@@ -186,7 +187,8 @@ def render_sky_reduced(profile, camera: Camera, sun_elevation_deg: float, reduce
     check_render_memory(camera.width, camera.height, profile.wavelengths_nm.size, settings, max_memory_gib,
                         wavelengths_nm=profile.wavelengths_nm, image_channels=n_channels, band_pixels=band_pixels,
                         sky_view_table=None if isinstance(reduce, Reduction) and method != "direct" else False,
-                        image_value_bytes=np.dtype(dtype).itemsize)
+                        image_value_bytes=np.dtype(dtype).itemsize, sun_elevation_deg=sun_elevation_deg,
+                        camera=camera)
     t0 = time.perf_counter()
     solution = _solution(profile, settings, solution, solutions, progress)
     marcher = SkyMarcher(profile, sun_elevation_deg, sun_azimuth_deg, observer_altitude_m, settings,

@@ -58,7 +58,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Reduction", "SkyViewTable", "xyz_reduction", "rgb_reduction", "CAP_RADIAL", "CAP_AROUND",
-           "CAP_CLEAR_MARGIN_DEG", "cap_radial_nodes", "TABLE_MIN_PIXELS"]
+           "CAP_CLEAR_MARGIN_DEG", "cap_radial_nodes", "cap_is_clear", "cap_shape", "TABLE_MIN_PIXELS"]
 
 #: Nodes of the sun cap's polar grid: from the sun outward (log-spaced, for a cap of
 #: :data:`CAP_RADIAL_DEG`; :func:`cap_radial_nodes` for other caps) and around it
@@ -91,6 +91,24 @@ def cap_radial_nodes(cap_deg: float) -> int:
     log spacing: ``final``'s 12-degree cap has 41)."""
     ratio = np.log(max(float(cap_deg), 1.01 * CAP_EXACT_DEG) / CAP_EXACT_DEG) / np.log(CAP_RADIAL_DEG / CAP_EXACT_DEG)
     return max(2, int(round(CAP_RADIAL * ratio)))
+
+
+def cap_is_clear(sun_zenith_rad: float, cap_deg: float, horizon_zenith_rad: float) -> bool:
+    """Whether a sun cap reaching ``cap_deg`` [deg] from a sun at ``sun_zenith_rad`` [rad] stays
+    :data:`CAP_RATIO_DEG` + :data:`CAP_CLEAR_MARGIN_DEG` above the horizon at ``horizon_zenith_rad``
+    [rad]: such a cap holds no steep gradient and keeps every other node (:func:`cap_shape`)."""
+    return bool(float(sun_zenith_rad) + np.radians(float(cap_deg))
+                < float(horizon_zenith_rad) - np.radians(CAP_RATIO_DEG + CAP_CLEAR_MARGIN_DEG))
+
+
+def cap_shape(cap_deg: float, clear: bool, cap_radial: int | None = None, cap_around: int = CAP_AROUND):
+    """(radial, around) nodes of a sun cap reaching ``cap_deg`` [deg] (``cap_radial`` None:
+    :func:`cap_radial_nodes`); a clear cap (:func:`cap_is_clear`) keeps every other node."""
+    radial = cap_radial_nodes(cap_deg) if cap_radial is None else int(cap_radial)
+    around = int(cap_around)
+    if clear:
+        radial, around = (radial + 1) // 2, (around + 1) // 2
+    return radial, around
 
 
 @dataclass(frozen=True)
@@ -170,13 +188,11 @@ class SkyViewTable:
                            0.0])
         self.e1 = e1 / np.linalg.norm(e1)
         self.e2 = np.cross(self.sun, self.e1)
-        if cap_radial is None:
-            cap_radial = cap_radial_nodes(marcher.settings.sun_exact_deg)
         # a cap clear of the horizon's band holds no steep gradient: every other node suffices
-        self.clear = bool(np.arccos(np.clip(self.sun[2], -1.0, 1.0)) + self.cap_max
-                          < self.horizon - np.radians(CAP_RATIO_DEG + CAP_CLEAR_MARGIN_DEG))
-        if self.clear and coarse_when_clear:
-            cap_radial, cap_around = (int(cap_radial) + 1) // 2, (int(cap_around) + 1) // 2
+        self.clear = cap_is_clear(np.arccos(np.clip(self.sun[2], -1.0, 1.0)), marcher.settings.sun_exact_deg,
+                                  self.horizon)
+        cap_radial, cap_around = cap_shape(marcher.settings.sun_exact_deg, self.clear and coarse_when_clear,
+                                           cap_radial, cap_around)
         self.cap_u = np.linspace(0.0, 1.0, int(cap_radial))
         self.cap_psi = np.linspace(0.0, np.pi, int(cap_around))
         self.cap_min = np.radians(CAP_EXACT_DEG)
