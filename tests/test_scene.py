@@ -79,7 +79,7 @@ def test_quality_registry_names_the_choices_and_keeps_the_settings():
         quality.quality_settings("ultra")
     assert e.value.parameter == "quality" and "preview, final, reference" in str(e.value)
     assert tuple(quality.QUALITIES) == scene.parameter("quality").choices
-    assert quality.QUALITY["final"].table_mus == 32 and quality.QUALITY["preview"].view_steps == 40
+    assert quality.QUALITY["final"].table_mus == 32 and quality.QUALITY["preview"].view_steps == 64
     m = quality.QUALITIES["final"].measured()
     assert 0 < m["radiance_rel_mean"] <= quality.QUALITIES["final"].target["radiance_rel_mean"]
     assert "measured.json" in m["source"]
