@@ -70,11 +70,21 @@ def test_field_read_in_blocks_is_the_same(monkeypatch):
     assert whole.shape == (7, 11, 2)
     monkeypatch.setattr(msm, "_SOURCE_BLOCK", 5)
     np.testing.assert_array_equal(field.source_at(*pts), whole)
-    # the table's J column is the solved source, and ``source`` is now a view of it
+    # the table's J column is the solved source over the scattering coefficient at its
+    # altitude node (read linearly in altitude, times sigma_s at the point: source_at)
     tab = field._interp_table()
-    assert np.shares_memory(field.source, tab)
+    assert field.h_scale is not None and not np.shares_memory(field.source, tab)
     src = np.moveaxis(field.source, 0, -1)
-    np.testing.assert_array_equal(tab[1:-1, ..., 0, :], src)
+    np.testing.assert_allclose(tab[1:-1, ..., 0, :] * field.h_scale[None, None, :, None, :].astype(np.float32), src,
+                               rtol=1e-6, atol=0)
+    # at a node the point reads the node's J
+    h, mu, phi, mus = field.h_nodes[3], field.mu_nodes[2], field.phi_nodes[1], field.mus_nodes[5]
+    np.testing.assert_allclose(field.source_at(h, mu, phi, mus), field.source[:, 2, 1, 3, 5], rtol=1e-5)
+    # without h_scale (fields solved before, source_by_scattering=False) ``source`` is a view of the table
+    lin = SkyMarcher(prof, 3.0, 180.0, 0.0, replace(small, source_by_scattering=False)).field
+    lin_tab = lin._interp_table()
+    assert lin.h_scale is None and np.shares_memory(lin.source, lin_tab)
+    src = np.moveaxis(field.source / field.h_scale.T[:, None, None, :, None].astype(np.float32), 0, -1)
     # the table is float32 (the solver's precision): slopes computed in float64, then rounded
     assert tab.dtype == np.float32
     np.testing.assert_allclose(tab[1:-1, ..., 1, :], msm._log_slopes(field.mus_nodes, src.astype(float), axis=3),

@@ -113,6 +113,7 @@ class MarchSettings:
     spherical_probe_step_nm: float = 100.0  # wavelength spacing of the spherical correction (orders >= 2)
     peak_aureole: bool = True  # add the light scattered 2+ times in the cut forward peaks (skymodel.render.aureole)
     peak_diffuse: bool = False  # scatter the diffuse light near the horizon in the cut peaks (skymodel.render.peak_diffuse)
+    source_by_scattering: bool = True  # read J between altitude nodes as sigma_s(h) J/sigma_s (multiple_scattering.source_at)
     chunk: int = 2048  # directions per batch (memory ~ chunk * view_steps * n_wl * 8 B * 6)
     earth_shadow: bool = True  # False: the planet blocks no sunlight (for measuring the shadow's effect)
 
@@ -233,7 +234,8 @@ def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> 
         prof_ms, medium_ms, sun_table, n_altitudes=s.table_altitudes, n_mu=s.table_mu,
         n_phi=s.table_phi, n_mus=s.table_mus, n_steps=s.table_steps, orders=s.orders,
         max_orders=s.max_orders, tolerance=s.order_tolerance, spherical_orders=s.spherical_orders,
-        spherical_probe_step_nm=s.spherical_probe_step_nm, peak_diffuse=s.peak_diffuse, progress=progress)
+        spherical_probe_step_nm=s.spherical_probe_step_nm, peak_diffuse=s.peak_diffuse,
+        source_by_scattering=s.source_by_scattering, progress=progress)
     to_full = linear_interp_matrix(wl_ms, profile.wavelengths_nm)
     aureole = (peak_aureole_table(profile, medium, s.delta_m_cutoff_deg, top)
                if (s.peak_aureole and ms_field.orders > 1) else None)
@@ -403,7 +405,10 @@ class SkyMarcher:
         phi = np.arccos(np.clip(cphi, -1.0, 1.0))
         step = self.medium_ms.extinction_scaled.at(rings.h) * rings.dt[..., None]  # (G, S, W_ms)
         weight = step_transmittance(step) * rings.dt[..., None]
-        src = self.field.source_at(np.broadcast_to(rings.h[:, None, :], mus.shape), mu, phi, mus)
+        scale = None
+        if self.field.h_scale is not None:  # sigma_s at the samples, once per ring (source_at)
+            scale = self.field.scattering.at(rings.h)[:, None]  # (G, 1, S, W_ms)
+        src = self.field.source_at(np.broadcast_to(rings.h[:, None, :], mus.shape), mu, phi, mus, scale=scale)
         return _column(weight, src)
 
     def _capped_aerosol_phase(self, cos_theta):
