@@ -129,7 +129,8 @@ class SunTransmittance:
         h = np.clip(np.asarray(altitudes_m, dtype=float), self.h_nodes[0], self.h_nodes[-1])
         rho = np.sqrt(h * (2.0 * self.R + h))
         n = self.rho_nodes.size
-        u = (rho / (self.rho_nodes[-1] / (1.0 - 1e-9))) ** (1.0 / self._rho_power) * (n - 1)
+        power = getattr(self, "_rho_power", 1.0)  # a table pickled before the rule (evenly in rho)
+        u = (rho / (self.rho_nodes[-1] / (1.0 - 1e-9))) ** (1.0 / power) * (n - 1)
         i = np.clip(u.astype(np.int64), 0, n - 2)
         lo = self.rho_nodes[i]
         fi = np.clip((rho - lo) / (self.rho_nodes[i + 1] - lo), 0.0, 1.0)
