@@ -55,3 +55,41 @@ def test_sun_near_the_local_horizon(rural):
     lit = exact > 0.01
     assert lit.sum() >= 15
     np.testing.assert_allclose(got[lit], exact[lit], rtol=0.01)
+
+
+def test_low_sun_between_the_lowest_altitude_nodes(rural):
+    """Sun at 5 degrees, points every 5 m in the lowest 400 m. Between two altitude nodes
+    the table is linear in rho, so a depth that falls linearly with the altitude h =
+    rho^2 / 2R is read too small by (rho - rho_i)(rho_i+1 - rho) / 2R times its slope:
+    with the nodes evenly in rho (96 of them, 11.9 km apart) that is 2.8 m of altitude
+    in the middle of every interval, 0.012 of an optical depth of 5 at 450 nm (1.2 %
+    too much sunlight). Evenly in sqrt(rho) the lowest intervals are 95^2 times narrower
+    and the step grows to twice the even one at the top: 0.0025 (the even rule: 0.0125)."""
+    prof, med = rural
+    R, top = prof.planet_radius_m, prof.top_altitude_m
+    h = np.arange(0.0, 400.0, 5.0)
+    mu = np.full_like(h, np.sin(np.radians(5.0)))
+    exact = _direct_optical_depth(med, R, top, h, mu)
+    got = SunTransmittance([med.extinction], R, top, 96, 192, 160).optical_depth(h, mu)  # final's table
+    assert np.abs(got - exact).max() < 0.004
+
+
+def test_a_table_pickled_before_the_node_rule_reads_its_own_nodes(rural):
+    """Solutions cached on disk (skymodel.render.sequence.SolutionCache) keep their sun
+    table: one pickled before the nodes moved to sqrt(rho) has no ``_rho_power`` and its
+    nodes evenly in rho; it must read them as such (the same depths as that rule built now)."""
+    import skymodel.render.sun_transmittance as stm
+
+    prof, med = rural
+    R, top = prof.planet_radius_m, prof.top_altitude_m
+    old_power = stm._RHO_POWER
+    try:
+        stm._RHO_POWER = 1.0
+        even = SunTransmittance([med.extinction], R, top, 32, 48, 48)
+    finally:
+        stm._RHO_POWER = old_power
+    h = np.array([0.0, 20.0, 333.0, 5000.0, 40000.0])
+    mu = np.full_like(h, np.sin(np.radians(5.0)))
+    want = even.optical_depth(h, mu)
+    del even.__dict__["_rho_power"]  # as unpickled from before
+    np.testing.assert_array_equal(even.optical_depth(h, mu), want)

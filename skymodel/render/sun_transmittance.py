@@ -7,8 +7,9 @@ Bruneton & Neyret's (2008) distance parameter: with rho = sqrt(r^2 - R^2) and
 H = sqrt(r_top^2 - R^2), the distance d to the top boundary runs from r_top - r
 (looking straight up) to rho + H (the ray grazing the ground), and we take nodes evenly
 in x = (d - d_min) / (d_max - d_min). This spreads the nodes where the optical depth
-changes fastest, near the horizon. The altitude nodes are evenly spaced in rho (Bruneton
-2017's x_r = rho / H), and the table is interpolated linearly in rho between them. Near
+changes fastest, near the horizon. The altitude nodes are evenly spaced in sqrt(rho / H)
+(rho = H u^2, u even: Bruneton 2017's x_r = rho / H, squared), and the table is
+interpolated linearly in rho between them. Near
 the ground rho = sqrt(2 R h) changes fastest: the horizon distance d_max grows by 40 km in
 the lowest 125 m, so at a fixed x the direction, and with a low sun the optical depth,
 changes as sqrt(h) there. Altitude nodes interpolated in h miss that: with 128 nodes
@@ -18,6 +19,15 @@ sun at 5 degrees got an optical depth 0.08 too small at 450 nm (rural aerosol, A
 the Monte Carlo tracer's (se 0.1-0.2 %). Evenly in rho, the lowest nodes lie 6, 25, 56,
 100 m up; that optical depth error is 0.006, and 88/0 is within -0.0..+0.5 %
 (notebooks/sunward_horizon, "88/0 with the sun at 5 degrees").
+Linear in rho is not linear in h = rho^2 / 2R: between nodes i and i + 1 a depth that
+falls linearly with h is read too small by its slope times (rho - rho_i)(rho_i+1 - rho)
+/ 2R, 2.8 m of altitude mid-interval with 96 nodes evenly in rho: at sun 5 degrees up to
+0.012 of a depth of 5 in the lowest few hundred metres (rural, 450 nm; 1.2 % too much
+sunlight on the horizon's single scattering). With the nodes evenly in sqrt(rho) the
+low intervals are much narrower (the first rho step H / 95^2, 125 m) and the top ones
+twice the even step, where the air is thin: the error is 0.0025 (tests/
+test_sun_transmittance.py; 96 nodes against 768: sun 60/20/5/2 degrees 0.0013/0.0033/
+0.0116/0.024 -> 0.0003/0.0007/0.0021/0.0038 in the lowest 20 km, rural AOD 0.2).
 
 Directions below the local horizon (mu < -rho / r) meet the planet: the point is in the
 Earth's shadow. The sun is a disc of angular radius alpha, so near the horizon it sets
@@ -45,6 +55,10 @@ SUN_ANGULAR_RADIUS_RAD = np.arcsin(695_700.0 / 149_597_870.7)
 _TABLE_ROWS = 2
 
 
+#: the altitude nodes: rho = H u**_RHO_POWER, u evenly spaced (module docstring)
+_RHO_POWER = 2.0
+
+
 class SunTransmittance:
     """Optical depth to the top of the atmosphere for several low-rank media at once.
 
@@ -62,7 +76,8 @@ class SunTransmittance:
         self.top = float(top_altitude)
         self.r_top = self.R + self.top
         big_h = np.sqrt(self.r_top**2 - self.R**2)
-        self.rho_nodes = np.linspace(0.0, big_h, n_altitudes) * (1.0 - 1e-9)
+        self._rho_power = float(_RHO_POWER)
+        self.rho_nodes = big_h * np.linspace(0.0, 1.0, n_altitudes) ** self._rho_power * (1.0 - 1e-9)
         self.h_nodes = np.sqrt(self.rho_nodes**2 + self.R**2) - self.R
         self.x_nodes = np.linspace(0.0, 1.0, n_x) * (1.0 - 1e-9)
         # integrals of every basis function along every tabulated ray: (n_h, n_x, k_total),
@@ -113,9 +128,12 @@ class SunTransmittance:
         docstring); altitudes are clamped to the table's range."""
         h = np.clip(np.asarray(altitudes_m, dtype=float), self.h_nodes[0], self.h_nodes[-1])
         rho = np.sqrt(h * (2.0 * self.R + h))
-        step = self.rho_nodes[1] - self.rho_nodes[0]
-        i = np.clip((rho / step).astype(np.int64), 0, self.rho_nodes.size - 2)
-        fi = np.clip((rho - self.rho_nodes[i]) / step, 0.0, 1.0)
+        n = self.rho_nodes.size
+        power = getattr(self, "_rho_power", 1.0)  # a table pickled before the rule (evenly in rho)
+        u = (rho / (self.rho_nodes[-1] / (1.0 - 1e-9))) ** (1.0 / power) * (n - 1)
+        i = np.clip(u.astype(np.int64), 0, n - 2)
+        lo = self.rho_nodes[i]
+        fi = np.clip((rho - lo) / (self.rho_nodes[i + 1] - lo), 0.0, 1.0)
         return i, fi
 
     def visible_fraction(self, altitudes_m, mu_sun):
