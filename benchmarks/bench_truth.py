@@ -67,10 +67,12 @@ MONTH = 6
 SUN_AZIMUTH = 180.0
 MC_WAVELENGTHS_NM = (450.0, 550.0, 650.0)
 MARCH_WAVELENGTHS_NM = tuple(np.arange(440.0, 661.0, 10.0))
-#: sun_guide of trace_radiance per aerosol (0: plain NEE); the "proxy" estimator: none
-#: (desert, sun -4: no better with 0.2, bench_truth.py pilot --pilot-guides 0,0.2)
+#: sun_guide of trace_radiance per aerosol (0: plain NEE); the "proxy" estimator: the same
+#: (desert -4 with none: single paths carry 47-75 % of a direction's mean at 550 nm after
+#: 14 000 paths, the other directions' means 3-15 % low; with 0.2 no such path, projection
+#: to 0.5 % ~7x shorter, 0.4 no better than 0.2 within the noise: docs/accuracy.md)
 SUN_GUIDE = {"rural": 0.0, "desert": 0.2}
-SUN_GUIDE_PROXY = {"rural": 0.0, "desert": 0.0}
+SUN_GUIDE_PROXY = {"rural": 0.0, "desert": 0.2}
 #: trace_radiance's estimator per scene: NEE with the sun up and on the horizon, "proxy"
 #: below LOW_SUN_DEG (measured: docs/accuracy.md, "A cheaper estimator for the twilight
 #: scenes": 5.6-8.5x faster than NEE at -4 deg, no faster at 0 deg)

@@ -125,5 +125,5 @@ def test_committed_truth_runs_are_read_when_the_cache_has_none(tmp_path):
     assert mc is not None and mc["mean"].shape == (view_set(60.0).shape[0], 3)
     # a run's file records its estimator and sun guide (--sun-guide overrides the table's)
     prof = bt.Scene("desert", -4.0, str(tmp_path)).mc_profile()
-    assert bt.Scene("desert", -4.0, str(tmp_path)).mc_file(prof).endswith("_g0_proxy.npz")
-    assert bt.Scene("desert", -4.0, str(tmp_path), "proxy", 0.2).mc_file(prof).endswith("_g0.2_proxy.npz")
+    assert bt.Scene("desert", -4.0, str(tmp_path)).mc_file(prof).endswith("_g0.2_proxy.npz")
+    assert bt.Scene("desert", -4.0, str(tmp_path), "proxy", 0.0).mc_file(prof).endswith("_g0_proxy.npz")
