@@ -67,10 +67,12 @@ MONTH = 6
 SUN_AZIMUTH = 180.0
 MC_WAVELENGTHS_NM = (450.0, 550.0, 650.0)
 MARCH_WAVELENGTHS_NM = tuple(np.arange(440.0, 661.0, 10.0))
-#: sun_guide of trace_radiance per aerosol (0: plain NEE); the "proxy" estimator: none
-#: (desert, sun -4: no better with 0.2, bench_truth.py pilot --pilot-guides 0,0.2)
+#: sun_guide of trace_radiance per aerosol (0: plain NEE); the "proxy" estimator: the same
+#: (desert -4 with none: single paths carry 47-75 % of a direction's mean at 550 nm after
+#: 14 000 paths, the other directions' means 3-15 % low; with 0.2 no such path, projection
+#: to 0.5 % ~7x shorter, 0.4 no better than 0.2 within the noise: docs/accuracy.md)
 SUN_GUIDE = {"rural": 0.0, "desert": 0.2}
-SUN_GUIDE_PROXY = {"rural": 0.0, "desert": 0.0}
+SUN_GUIDE_PROXY = {"rural": 0.0, "desert": 0.2}
 #: trace_radiance's estimator per scene: NEE with the sun up and on the horizon, "proxy"
 #: below LOW_SUN_DEG (measured: docs/accuracy.md, "A cheaper estimator for the twilight
 #: scenes": 5.6-8.5x faster than NEE at -4 deg, no faster at 0 deg)
@@ -132,10 +134,11 @@ def estimator_for(elev, override=None):
 
 
 class Scene:
-    def __init__(self, aerosol, elev, cache, estimator=None):
+    def __init__(self, aerosol, elev, cache, estimator=None, sun_guide=None):
         self.aerosol, self.elev, self.cache = aerosol, float(elev), cache
         self.estimator = estimator_for(elev, estimator)
-        self.sun_guide = (SUN_GUIDE_PROXY if self.estimator == "proxy" else SUN_GUIDE)[aerosol]
+        self.sun_guide = (SUN_GUIDE_PROXY if self.estimator == "proxy" else SUN_GUIDE)[aerosol] \
+            if sun_guide is None else float(sun_guide)
         self.atm = atmosphere(aerosol)
         self.views = view_set(self.elev)
         self.dirs = view_directions(self.views, SUN_AZIMUTH)
@@ -456,6 +459,8 @@ def main(argv=None):
                     "aerosol's)")
     ap.add_argument("--estimator", default=None, help="Monte Carlo estimator of every scene (default: nee with "
                     f"the sun up, {ESTIMATOR_LOW_SUN} below {LOW_SUN_DEG:g} deg)")
+    ap.add_argument("--sun-guide", type=float, default=None, help="sun_guide of every scene's Monte Carlo "
+                    "(default: SUN_GUIDE / SUN_GUIDE_PROXY per aerosol; the run's file name records it)")
     ap.add_argument("--cache", default=os.path.join(_HERE, "..", ".cache", "truth"))
     ap.add_argument("--target-se", type=float, default=0.005, help="relative MC standard error per direction")
     ap.add_argument("--max-paths", type=int, default=400_000, help="paths per direction and wavelength, at most")
@@ -465,7 +470,7 @@ def main(argv=None):
     ap.add_argument("--write-docs", action="store_true", help="write docs/accuracy.md's section and its plot")
     ap.add_argument("--json", default=None, help="write the rows here")
     a = ap.parse_args(argv)
-    scenes = [Scene(aer, el, a.cache, a.estimator) for aer, el in scenes_from(a.scenes)]
+    scenes = [Scene(aer, el, a.cache, a.estimator, a.sun_guide) for aer, el in scenes_from(a.scenes)]
     if a.what == "pilot":
         for sc in scenes:
             pilot(sc, a.pilot_paths, a.pilot_estimators and a.pilot_estimators.split(","),
