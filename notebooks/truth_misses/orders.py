@@ -7,7 +7,8 @@ usage: orders.py scene bounces paths [albedo] [variant] [tag] [dm]
   paths    MC paths per view and wavelength (one run, seed 7; cached in $TRUTH_MISSES_OUT)
   albedo   '' = the scene's own ground; a number = a grey ground of that albedo, in both
   variant  MarchSettings fields changed from final, 'a=1,b=2' (bench_truth's syntax)
-  (env VIEWS=0/0,70/45: only these views of the set)
+  (env VIEWS=0/0,70/45: only these views of the set; env ESTIMATOR=proxy|sunlit: the MC's
+  estimator, default nee; below the horizon use proxy, the file names get its name)
   tag      name of the saved marcher result (var_<scene>_<tag>.npz; '' = not saved)
   dm       'dm': both run on the delta-M medium itself (each aerosol's phase function
            truncated at final's 12-degree cone and renormalised, its scattering times
@@ -54,7 +55,9 @@ if os.environ.get("VIEWS"):  # a subset of the view set, e.g. VIEWS=0/0,70/45 (t
 atm = bt.atmosphere(a) if albedo == "" else Atmosphere(location=a, month=bt.MONTH, aod550=bt.AEROSOLS[a],
                                                         albedo=float(albedo))
 nb = 64 if bounces == "all" else int(bounces)
-mc_f = f"{OUT}/mcb_{sc.name}_b{bounces}_a{albedo or 'x'}_n{paths}{'_dm' if dm else ''}.npz"
+est = os.environ.get("ESTIMATOR", "nee")
+mc_f = (f"{OUT}/mcb_{sc.name}_b{bounces}_a{albedo or 'x'}_n{paths}{'_dm' if dm else ''}"
+        f"{'' if est == 'nee' else '_' + est}.npz")
 
 
 def delta_m(prof):
@@ -73,7 +76,7 @@ if os.path.exists(mc_f):
     mc, se, mc_s = z["mean"], z["se"], float(z["seconds"])
 else:
     res = trace_radiance(prof_mc, sc.dirs, sc.elev, bt.SUN_AZIMUTH, n_paths=paths, max_bounces=nb, seed=7,
-                         sun_guide=bt.SUN_GUIDE[a])
+                         sun_guide=bt.SUN_GUIDE[a] if est == "nee" else 0.0, estimator=est)
     mc, se, mc_s = res.radiance, res.stderr, res.time_s
     np.savez(mc_f, mean=mc, se=se, seconds=mc_s)
 e0 = np.asarray(prof_mc.solar_irradiance)[None, :]
