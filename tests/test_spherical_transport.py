@@ -59,7 +59,7 @@ def test_first_order_radiance_is_the_spherical_single_scattering(rayleigh_only, 
         assert np.all(got[~lit] <= 1e-4 * max(ref.max(), 1e-300))
 
 
-def test_spherical_transport_changes_nothing_with_a_high_sun(monkeypatch):
+def test_spherical_transport_changes_nothing_with_a_high_sun():
     """With the sun high the sun angle hardly changes along the rays that matter, so the
     spherical transport (first order exact, second corrected) must agree with the
     independent columns once the tables resolve the medium: within 0.3 % of the total
@@ -69,15 +69,10 @@ def test_spherical_transport_changes_nothing_with_a_high_sun(monkeypatch):
     tables, against 3-17 % for the columns). That comparison reads the source linearly
     between altitude nodes (``source_by_scattering=False``); read as sigma_s(h) J / sigma_s
     (the default) the coarse columns come closer to the fine tables in every view than
-    read linearly. The sun-angle nodes are spread as before the twilight crowding
-    (``SUN_NODES_BELOW_SHARE`` 0.55): with 16 nodes, 9 of them below the horizon, a 45-degree
-    sun lies between nodes 22 degrees apart, an error both transports share (measured 2.5-5 %
-    on the coarse tables) which hides the difference this test is about."""
+    read linearly. (16 sun-angle nodes are fewer than ``SUN_NODES_SHARE_MIN``: they keep the
+    day-heavy spread; with 9 of 16 below the horizon a 45-degree sun lay between nodes 22 degrees
+    apart, an error both transports shared, 2.5-5 %, which hid the difference this test is about.)"""
     from dataclasses import replace
-
-    from skymodel.render import multiple_scattering as msm
-
-    monkeypatch.setattr(msm, "SUN_NODES_BELOW_SHARE", 0.32)  # 5 of 16 below the horizon
 
     prof = synthetic_profile(WL, aod550=0.2)
     d = direction_from_angles(np.array([0.0, 45.0, 80.0, 88.0]), np.array([0.0, 180.0, 90.0, 0.0]))

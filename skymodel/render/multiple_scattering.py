@@ -74,16 +74,25 @@ from skymodel.render.threads import SOLVER_THREADS, chunks_in_threads
 #: at 450/550/650 nm, worst -7.7 %; 14 below, 0.76/0.57/0.63 %, -5.9 %; 18 below, 0.81/0.55/0.45 %, -5.3 %;
 #: with the sun at 60, 20 and 5 degrees (rural) and 60, 20, 5 (desert) no median moved beyond its noise.
 SUN_NODES_BELOW_SHARE = 0.55
+#: Tables with fewer sun-angle nodes than this (tests, the accuracy bench's quick run) keep the earlier
+#: spread (u^2 over -20..90, about a third below the horizon): with 12 nodes the share would leave 5 for
+#: the day, 28 degrees apart at a 60-degree sun, which then outweighs every other knob of such a table.
+SUN_NODES_SHARE_MIN = 24
 
 
 def sun_elevation_nodes(n: int, lowest_deg: float = -20.0, below_share: float | None = None) -> np.ndarray:
     """Sun elevation nodes (degrees) from ``lowest_deg`` to 90, crowded near 0 where
     twilight changes fastest: ``round(n * below_share)`` nodes below the horizon at
     elevation = lowest_deg u^2 (u from 1 down to 0, evenly spaced, 0 excluded), the rest at
-    90 u^2 (u from 0 to 1). ``below_share`` None: :data:`SUN_NODES_BELOW_SHARE`. A sun below
+    90 u^2 (u from 0 to 1). ``below_share`` None: :data:`SUN_NODES_BELOW_SHARE` (fewer than
+    :data:`SUN_NODES_SHARE_MIN` nodes: 90 sign(u) u^2 for u evenly spaced from
+    -sqrt(-lowest_deg / 90) to 1, the earlier spread). A sun below
     the horizon lights the sky through the air above the Earth's shadow, whose height goes
     as the square of the sun's depth: the field changes there much faster with the sun's
     angle than by day, where a few nodes suffice (the cubic in log J between them)."""
+    if below_share is None and n < SUN_NODES_SHARE_MIN:
+        u = np.linspace(-np.sqrt(-lowest_deg / 90.0), 1.0, n)
+        return 90.0 * np.sign(u) * u * u
     share = SUN_NODES_BELOW_SHARE if below_share is None else float(below_share)
     n_below = min(max(int(round(n * share)), 1), n - 2)
     u_below = np.linspace(1.0, 0.0, n_below + 1)[:-1]
