@@ -640,14 +640,9 @@ def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng, sun_guide
         nxt_D = D.copy()
         keep = ev != _ESCAPE
         # ---- scattering in the air
-        ci = np.flatnonzero(ev == _COLLIDE)
+        ci, wc, sig_sc, sig_s, sig_t = _collision_coefficients(med, P, Wl, ev)
         if ci.size:
-            Pc, Dc, wc = P[ci], D[ci], Wl[ci]
-            h = np.sqrt(_rowdot(Pc, Pc)) - R
-            comp = med.components_at(h, wc)  # (C, m)
-            sig_sc = comp[:-1]
-            sig_s = sig_sc.sum(axis=0)
-            sig_t = sig_s + comp[-1]
+            Pc, Dc = P[ci], D[ci]
             mu_sun = Dc @ sun
             ph = np.concatenate([med.rayleigh_phase(mu_sun, wc)[None], med.aerosol_phase(mu_sun, wc)])
             f = beta[ci] * (sig_sc * ph).sum(axis=0) / sig_t
@@ -1008,6 +1003,18 @@ def _sunlit_estimate(med, p, d, w, sun, rng, line=None):
     return out
 
 
+def _collision_coefficients(med, P, Wl, ev):
+    """At the air collisions among the events ``ev``: (ci, wc, sig_sc, sig_s, sig_t), their
+    rows, wavelength indices, per-component scattering coefficients (C, m), total scattering
+    and extinction (m,), per metre, at each vertex's altitude."""
+    ci = np.flatnonzero(ev == _COLLIDE)
+    Pc, wc = P[ci], Wl[ci]
+    comp = med.components_at(np.sqrt(_rowdot(Pc, Pc)) - med.R, wc)
+    sig_sc = comp[:-1]
+    sig_s = sig_sc.sum(axis=0)
+    return ci, wc, sig_sc, sig_s, sig_s + comp[-1]
+
+
 def _scatter(med, P, D, Wl, ev, beta, J, rng, sun_guide=0.0, sun=None):
     """New directions at the events (air collisions and ground hits) and the weights'
     update (single-scattering albedo and phase mass; ground albedo). Returns the new
@@ -1018,14 +1025,8 @@ def _scatter(med, P, D, Wl, ev, beta, J, rng, sun_guide=0.0, sun=None):
     if sun_guide > 0.0:
         return _scatter_guided(med, P, D, Wl, ev, beta, J, rng, sun_guide, sun)
     nxt = D.copy()
-    ci = np.flatnonzero(ev == _COLLIDE)
+    ci, wc, sig_sc, sig_s, sig_t = _collision_coefficients(med, P, Wl, ev)
     if ci.size:
-        Pc, wc = P[ci], Wl[ci]
-        h = np.sqrt(_rowdot(Pc, Pc)) - med.R
-        comp = med.components_at(h, wc)
-        sig_sc = comp[:-1]
-        sig_s = sig_sc.sum(axis=0)
-        sig_t = sig_s + comp[-1]
         wt, nxt[ci] = _sample_scattering(med, sig_sc, sig_s, sig_t, wc, D[ci], rng)
         beta[ci] *= wt
     gi = np.flatnonzero(ev == _GROUND)
@@ -1042,14 +1043,10 @@ def _scatter_guided(med, P, D, Wl, ev, beta, J, rng, alpha, sun):
     """:func:`_scatter` with the sun guide (fraction ``alpha``), the same mixtures and exact
     weights as :func:`_trace_batch`'s guided NEE."""
     nxt = D.copy()
-    ci = np.flatnonzero(ev == _COLLIDE)
+    ci, wc, sig_sc, sig_s, sig_t = _collision_coefficients(med, P, Wl, ev)
     if ci.size:
-        Pc, wc = P[ci], Wl[ci]
-        comp = med.components_at(np.sqrt(_rowdot(Pc, Pc)) - med.R, wc)
-        sig_sc = comp[:-1]
-        sig_s = sig_sc.sum(axis=0)
         nxt[ci], wgt = _guided_direction(med, D[ci], wc, sig_sc, sun, alpha, rng)
-        beta[ci] *= sig_s / (sig_s + comp[-1]) * wgt
+        beta[ci] *= sig_s / sig_t * wgt
     gi = np.flatnonzero(ev == _GROUND)
     if gi.size:
         Pg, wg = P[gi], Wl[gi]
@@ -1169,15 +1166,11 @@ def _vertex_kernel(med, P, Din, Wl, ev, d):
     max(n.d, 0) / pi) and p the density (per sr) of :func:`_scatter`'s sampling."""
     f = np.zeros(P.shape[0])
     p = np.zeros(P.shape[0])
-    ci = np.flatnonzero(ev == _COLLIDE)
+    ci, wc, sig_sc, sig_s, sig_t = _collision_coefficients(med, P, Wl, ev)
     if ci.size:
-        Pc, wc = P[ci], Wl[ci]
-        comp = med.components_at(np.sqrt(_rowdot(Pc, Pc)) - med.R, wc)
-        sig_sc = comp[:-1]
-        sig_s = sig_sc.sum(axis=0)
         mu = _rowdot(Din[ci], d[ci])
         ph = np.concatenate([med.rayleigh_phase(mu, wc)[None], med.aerosol_phase(mu, wc)])
-        f[ci] = (sig_sc * ph).sum(axis=0) / (sig_s + comp[-1])
+        f[ci] = (sig_sc * ph).sum(axis=0) / sig_t
         mass = np.concatenate([np.ones((1, ci.size)), med.phase_mass[:, wc]])
         with np.errstate(divide="ignore", invalid="ignore"):
             p[ci] = np.where(sig_s > 0, (sig_sc * ph / np.where(mass > 0, mass, 1.0)).sum(axis=0) / np.where(sig_s > 0, sig_s, 1.0), 0.0)
