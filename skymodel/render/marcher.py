@@ -406,7 +406,7 @@ class SkyMarcher:
         step = self.medium_ms.extinction_scaled.at(rings.h) * rings.dt[..., None]  # (G, S, W_ms)
         weight = step_transmittance(step) * rings.dt[..., None]
         scale = None
-        if self.field.h_scale is not None:  # sigma_s at the samples, once per ring (source_at)
+        if self.field.scattering is not None:  # sigma_s at the samples, once per ring (source_at)
             scale = self.field.scattering.at(rings.h)[:, None]  # (G, 1, S, W_ms)
         src = self.field.source_at(np.broadcast_to(rings.h[:, None, :], mus.shape), mu, phi, mus, scale=scale)
         return _column(weight, src)

@@ -134,16 +134,20 @@ class MultipleScatteringField:
     ground_diffuse_irradiance: np.ndarray  # (n_mus, n_wl) W m^-2 nm^-1
     orders: int
     order_contributions: list  # relative size of each order's source (diagnostic)
-    #: the scattering coefficient at the altitude nodes (n_h, n_wl) [m^-1] and its LowRank, when J is
-    #: interpolated in altitude as sigma_s(h) times J / sigma_s read linearly (:func:`scattering_reference`);
-    #: None: J itself read linearly (fields solved before, or ``source_by_scattering=False``)
-    h_scale: np.ndarray | None = None
+    #: the scattering coefficient (a LowRank, :func:`scattering_reference`) when J is interpolated in
+    #: altitude as sigma_s(h) times J / sigma_s read linearly; None: J itself read linearly (fields
+    #: solved before, or ``source_by_scattering=False``)
     scattering: object = None
+
+    @property
+    def h_scale(self) -> np.ndarray | None:
+        """sigma_s at the altitude nodes (n_h, n_wl) [m^-1] (``scattering``), or None."""
+        return None if self.scattering is None else self.scattering.at(self.h_nodes)
 
     def source_at(self, h, mu, phi, mu_s, scale=None) -> np.ndarray:
         """Interpolated J_ms at points (any common shape) -> shape + (n_wl,).
 
-        Linear in altitude, mu and phi; with ``h_scale`` (the solver's
+        Linear in altitude, mu and phi; with ``scattering`` (the solver's
         ``source_by_scattering``) J / sigma_s is read linearly in altitude and multiplied by
         sigma_s(h) at the point: ``scale``, sigma_s at the points (broadcast to shape +
         (n_wl,); None: evaluated here from ``scattering``). J falls with the air's density,
@@ -176,7 +180,7 @@ class MultipleScatteringField:
         for a in range(0, n, _SOURCE_BLOCK):
             out[a:a + _SOURCE_BLOCK] = self._source_block(*(x[a:a + _SOURCE_BLOCK] for x in flat))
         out = out.reshape(shape + (out.shape[-1],))
-        if self.h_scale is not None:
+        if self.scattering is not None:
             out *= (self.scattering.at(pts[0]) if scale is None else scale).astype(out.dtype)
         return out
 
@@ -215,7 +219,7 @@ class MultipleScatteringField:
         degrees, the zenith was +2.2 % above the Monte Carlo tracer at ``final``)."""
         if getattr(self, "_table_poles", None) is None:
             src = np.moveaxis(self.source, 0, -1)  # (n_mu, n_phi, n_h, n_mus, n_wl)
-            if self.h_scale is not None:  # J / sigma_s, read linearly in altitude (:meth:`source_at`)
+            if self.scattering is not None:  # J / sigma_s, read linearly in altitude (:meth:`source_at`)
                 src = src / _safe(self.h_scale).astype(np.float32)[None, None, :, None, :]
             n_mu = src.shape[0]
             tab = np.empty((n_mu + 2,) + src.shape[1:-1] + (2, src.shape[-1]), dtype=np.float32)
@@ -235,7 +239,7 @@ class MultipleScatteringField:
             self._table_poles = tab
             self._mu_poles = np.concatenate([[-1.0], np.asarray(self.mu_nodes, dtype=float), [1.0]])
             self._table = None  # a table of an older version (pickled solutions) is not used
-            if self.h_scale is None:
+            if self.scattering is None:
                 self.source = np.moveaxis(tab[1:-1, ..., 0, :], -1, 0)  # the same values, a view: one copy kept
         return self._table_poles
 
@@ -953,9 +957,7 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
     source = series.source.reshape(grid.n_wl, grid.n_mu, grid.n_phi, grid.n_h, grid.n_mus)
     return MultipleScatteringField(grid.wavelengths_nm, grid.h_nodes, grid.mu_nodes, grid.phi_nodes, grid.mus_nodes,
                                    source, series.ground_irradiance.astype(np.float64), series.orders,
-                                   series.contributions,
-                                   h_scale=None if scattering is None else scattering.at(grid.h_nodes),
-                                   scattering=scattering)
+                                   series.contributions, scattering=scattering)
 
 
 def _ray_sun_cosine(mu0, phi_nodes, mus):
@@ -1123,7 +1125,7 @@ class _SphericalTransport:
         # ``sample_scale`` (rays, steps, n_wl) at the samples), as the column transport M reads it
         if sample_scale is not None:
             weight = weight * sample_scale
-        self.h_scale = None if h_scale is None else (1.0 / _safe(h_scale))[:, self.probe].astype(f32)  # (n_h, P)
+        self.inv_sigma = None if h_scale is None else (1.0 / _safe(h_scale))[:, self.probe].astype(f32)  # (n_h, P)
         self.weight = np.ascontiguousarray(weight[..., self.probe], dtype=f32)  # (rays, steps, n_probe)
         mus_sub = mus_nodes[self.sub]
         self.cs = _ray_sun_cosine(mu0, phi_nodes, mus_sub)  # (rays, n_p)
@@ -1151,8 +1153,8 @@ class _SphericalTransport:
         n_pr = self.probe.size
         # source laid out (altitude * n_mu + mu, phi, mu_s, probe)
         src = j_dir[self.probe].reshape(n_pr, self.n_mu, self.n_phi, self.n_h, self.n_mus)
-        if self.h_scale is not None:  # J / sigma_s at the nodes
-            src = src * self.h_scale.T[:, None, None, :, None]
+        if self.inv_sigma is not None:  # J / sigma_s at the nodes
+            src = src * self.inv_sigma.T[:, None, None, :, None]
         src = np.ascontiguousarray(src.transpose(3, 1, 2, 4, 0)).reshape(self.n_h * self.n_mu, self.n_phi, self.n_mus, n_pr)
         # with d(log J)/d(mu_s) beside J: (altitude * n_mu + mu, phi, mu_s, 2, probe)
         src = np.stack([src, _log_slopes(self.mus_nodes, src, axis=2).astype(np.float32)], axis=3)
