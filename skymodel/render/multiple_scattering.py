@@ -531,7 +531,8 @@ def trace_grid_rays(grid: TableGrid, medium: FactoredMedium, planet_radius_m: fl
     return GridRays(r0, mu0, t, dt, h, hits, trans, ground_t, ih, fh, im, fm)
 
 
-def transport_row_scale(grid: TableGrid, rays: GridRays, medium: FactoredMedium, scattering=None) -> np.ndarray:
+def transport_row_scale(grid: TableGrid, rays: GridRays, medium: FactoredMedium, sigma_nodes=None,
+                        sigma_samples=None) -> np.ndarray:
     """Factor (rays, n_wl), at most 1, that keeps each grid ray's transport within the
     physical bound.
 
@@ -543,33 +544,33 @@ def transport_row_scale(grid: TableGrid, rays: GridRays, medium: FactoredMedium,
     with 16-48 altitude nodes, which made each order larger than the last (the series
     diverged to 8x the solar irradiance). Rows above the physical bound 1 are scaled down
     to it; rows below it are left as they were (an ordinary sky changes by < 0.1 %: only
-    grazing rays through the whole atmosphere come near the bound). ``scattering``: the
-    LowRank by which the transport reads the source between altitude nodes
-    (:func:`column_transport_matrix`), None: linearly."""
+    grazing rays through the whole atmosphere come near the bound). ``sigma_nodes`` (n_h, n_wl)
+    and ``sigma_samples`` (rays, steps, n_wl): the scattering coefficient by which the transport
+    reads the source between altitude nodes (:func:`column_transport_matrix`), None: linearly."""
     ih, fh = rays.ih, rays.fh
     ext_nodes = medium.extinction_scaled.at(grid.h_nodes)  # (n_h, n_wl)
-    scale = None
-    if scattering is not None:
-        ext_nodes = ext_nodes / _safe(scattering.at(grid.h_nodes))
-        scale = scattering.at(rays.h)
+    if sigma_nodes is not None:
+        ext_nodes = ext_nodes / _safe(sigma_nodes)
     ext_interp = ext_nodes[ih] * (1.0 - fh)[..., None] + ext_nodes[np.minimum(ih + 1, grid.n_h - 1)] * fh[..., None]
-    if scale is not None:
-        ext_interp = ext_interp * scale
+    if sigma_samples is not None:
+        ext_interp = ext_interp * sigma_samples
     gathered = ((rays.dt[..., None] * rays.trans) * ext_interp).sum(axis=1)  # (rays, n_wl)
     return 1.0 / np.maximum(gathered, 1.0)
 
 
-def column_transport_matrix(grid: TableGrid, rays: GridRays, row_scale: np.ndarray, scattering=None) -> np.ndarray:
+def column_transport_matrix(grid: TableGrid, rays: GridRays, row_scale: np.ndarray, sigma_nodes=None,
+                            sigma_samples=None) -> np.ndarray:
     """The independent-column transport M, (n_wl, rays, nodes) float32, nodes = i_h *
     n_mu + i_mu as the rays: (M J)[ray] is the integral of a source J along the ray,
     int T(t) J(h(t), mu(t)) dt by the midpoint rule (J at the middle of each step, T its
     mean over the step: :func:`~skymodel.render.medium.step_transmittance`), J read between the four (altitude,
     zenith) nodes around each sample (at the ray's start's sun angle and azimuth: the
     columns). Rows scaled by ``row_scale`` (:func:`transport_row_scale`). Dimensionless
-    per metre of source: M [m] times J [W m^-2 sr^-1 nm^-1 m^-1]. ``scattering`` (a LowRank,
-    :func:`scattering_reference`): J is read as sigma_s(h) times J / sigma_s between the
-    altitude nodes (M's sample weights times sigma_s there, each node's column divided by
-    sigma_s at the node); None: J linearly."""
+    per metre of source: M [m] times J [W m^-2 sr^-1 nm^-1 m^-1]. ``sigma_nodes`` (n_h, n_wl)
+    and ``sigma_samples`` (rays, steps, n_wl), the scattering coefficient
+    (:func:`scattering_reference`) at the nodes and the samples: J is read as sigma_s(h) times
+    J / sigma_s between the altitude nodes (M's sample weights times sigma_s there, each node's
+    column divided by sigma_s at the node); None: J linearly."""
     n_rays, n_wl = rays.r0.size, grid.n_wl
     assert row_scale.shape == (n_rays, n_wl) and np.all(row_scale <= 1.0), row_scale.shape
     ih, fh, im, fm = rays.ih, rays.fh, rays.im, rays.fm
@@ -584,9 +585,9 @@ def column_transport_matrix(grid: TableGrid, rays: GridRays, row_scale: np.ndarr
     cells, corner_w = np.concatenate(cells), np.concatenate(corner_w)
     base = rays.dt[..., None] * rays.trans
     node_scale = None
-    if scattering is not None:
-        base = base * scattering.at(rays.h)
-        node_scale = np.repeat(1.0 / _safe(scattering.at(grid.h_nodes)), grid.n_mu, axis=0)  # (nodes, n_wl)
+    if sigma_nodes is not None:
+        base = base * sigma_samples
+        node_scale = np.repeat(1.0 / _safe(sigma_nodes), grid.n_mu, axis=0)  # (nodes, n_wl)
     M = np.empty((n_wl, n_rays, n_rays), dtype=np.float32)
     # one wavelength at a time, summed in float64 by bincount (the same sums in the same order
     # as np.add.at into a (rays, nodes, n_wl) float64 array, without its 0.34 GB at final)
@@ -930,8 +931,10 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
         return grid.empty_field()
     rays = trace_grid_rays(grid, medium, profile.planet_radius_m, profile.top_altitude_m, n_steps)
     scattering = scattering_reference(medium) if source_by_scattering else None
-    row_scale = transport_row_scale(grid, rays, medium, scattering)
-    M = column_transport_matrix(grid, rays, row_scale, scattering)
+    sigma = {} if scattering is None else {"sigma_nodes": scattering.at(grid.h_nodes),
+                                           "sigma_samples": scattering.at(rays.h)}  # once for all three
+    row_scale = transport_row_scale(grid, rays, medium, **sigma)
+    M = column_transport_matrix(grid, rays, row_scale, **sigma)
     G = ground_transmittance_vector(rays)
     species = scattering_species(profile, medium, grid)
     spherical = None
@@ -941,8 +944,7 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
             r0=rays.r0, mu0=rays.mu0, t=rays.t, dt=rays.dt, h=rays.h, R=profile.planet_radius_m, hits=rays.hits,
             ground_t=rays.ground_t, h_nodes=grid.h_nodes, mu_nodes=grid.mu_nodes, phi_nodes=grid.phi_nodes,
             mus_nodes=grid.mus_nodes, wavelengths_nm=grid.wavelengths_nm, probe_step_nm=spherical_probe_step_nm,
-            h_scale=None if scattering is None else scattering.at(grid.h_nodes),
-            sample_scale=None if scattering is None else scattering.at(rays.h))
+            h_scale=sigma.get("sigma_nodes"), sample_scale=sigma.get("sigma_samples"))
     # the first order's radiance goes straight into the series, which lets it go after order 2
     # (held here, it would keep one more field-sized array alive through every order)
     series = sum_scattering_orders(first_order_radiance(profile, medium, sun_table, grid, rays, M, G,
