@@ -96,6 +96,51 @@ def test_field_read_in_blocks_is_the_same(monkeypatch):
     assert field.source_at(1000.0, 0.5, 1.0, 0.2).shape == (2,)
 
 
+def test_threads_reading_a_fresh_field_build_its_table_once(monkeypatch):
+    """The marcher's threads read a new field at once: one builds the interpolation table
+    while the others wait, and every thread reads the same values (CI caught a thread that
+    saw the table published before its zenith nodes)."""
+    import threading
+    import time
+
+    from skymodel.render import multiple_scattering as msm
+
+    prof = Atmosphere(location="rural", month=6).optical_profile((550.0,))
+    small = MarchSettings(exact=True, table_altitudes=8, table_mu=8, table_phi=4, table_steps=16, view_steps=16)
+    field = SkyMarcher(prof, 10.0, 180.0, 0.0, small).field
+    pts = (np.linspace(0, 30e3, 50), np.linspace(-1, 1, 50), np.linspace(0, np.pi, 50), np.full(50, 0.3))
+    expected = field.source_at(*pts)
+    for name in ("_table_poles", "_mu_poles"):
+        field.__dict__.pop(name, None)
+    slopes, builds = msm._log_slopes, []
+    build = msm.MultipleScatteringField._build_interp_table
+
+    def slow_slopes(*a, **k):  # widen the window in which the other threads arrive
+        time.sleep(0.01)
+        return slopes(*a, **k)
+
+    def counted(self):
+        builds.append(1)
+        return build(self)
+
+    monkeypatch.setattr(msm, "_log_slopes", slow_slopes)
+    monkeypatch.setattr(msm.MultipleScatteringField, "_build_interp_table", counted)
+    start, out = threading.Barrier(4), [None] * 4
+
+    def read(k):
+        start.wait()
+        out[k] = field.source_at(*pts)
+
+    threads = [threading.Thread(target=read, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(builds) == 1
+    for o in out:
+        np.testing.assert_array_equal(o, expected)
+
+
 def test_the_zenith_reads_the_azimuthal_mean_not_one_azimuth():
     """Above the top ring of zenith-cosine nodes (never at the pole: double Gauss-Legendre)
     the source is interpolated toward the ring's azimuthal mean at mu = 1: at the zenith

@@ -55,6 +55,7 @@ the marcher in the small-angle approximation (:mod:`skymodel.render.aureole`).
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -217,31 +218,40 @@ class MultipleScatteringField:
         azimuthal mean that a direction at the pole has. Linear interpolation between
         the ring and the pole removes that bias (issue 23: rural AOD 0.2, sun 20
         degrees, the zenith was +2.2 % above the Monte Carlo tracer at ``final``)."""
-        if getattr(self, "_table_poles", None) is None:
-            src = np.moveaxis(self.source, 0, -1)  # (n_mu, n_phi, n_h, n_mus, n_wl)
-            if self.scattering is not None:  # J / sigma_s, read linearly in altitude (:meth:`source_at`)
-                src = src / _safe(self.h_scale).astype(np.float32)[None, None, :, None, :]
-            n_mu = src.shape[0]
-            tab = np.empty((n_mu + 2,) + src.shape[1:-1] + (2, src.shape[-1]), dtype=np.float32)
-            # one zenith node at a time, so the slopes' temporaries stay small; the table
-            # then holds the only copy of J (``source`` becomes a view of it)
-            for i in range(n_mu):
-                tab[i + 1, ..., 0, :] = src[i]
-                tab[i + 1, ..., 1, :] = _log_slopes(self.mus_nodes, np.asarray(src[i], dtype=np.float64), axis=2)
-            for pole, ring in ((0, 1), (n_mu + 1, n_mu)):
-                j = tab[ring, ..., 0, :]  # (n_phi, n_h, n_mus, n_wl); the phi nodes are equally spaced
-                jm = j.mean(axis=0)
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    sl = np.where(jm > 0, (j * tab[ring, ..., 1, :]).mean(axis=0) / np.where(jm > 0, jm, 1.0),
-                                  tab[ring, ..., 1, :].mean(axis=0))
-                tab[pole, ..., 0, :] = jm[None]
-                tab[pole, ..., 1, :] = sl[None]
-            self._table_poles = tab
-            self._mu_poles = np.concatenate([[-1.0], np.asarray(self.mu_nodes, dtype=float), [1.0]])
-            self._table = None  # a table of an older version (pickled solutions) is not used
-            if self.scattering is None:
-                self.source = np.moveaxis(tab[1:-1, ..., 0, :], -1, 0)  # the same values, a view: one copy kept
+        tab = getattr(self, "_table_poles", None)
+        if tab is not None:
+            return tab
+        with _TABLE_LOCK:  # the marcher's threads ask at once: one builds, the others wait for it
+            if getattr(self, "_table_poles", None) is None:
+                self._build_interp_table()
         return self._table_poles
+
+    def _build_interp_table(self) -> None:
+        """Fill ``_mu_poles`` and then ``_table_poles`` (:meth:`_interp_table`); the table is
+        published last, so a reader that sees it also sees its nodes."""
+        src = np.moveaxis(self.source, 0, -1)  # (n_mu, n_phi, n_h, n_mus, n_wl)
+        if self.scattering is not None:  # J / sigma_s, read linearly in altitude (:meth:`source_at`)
+            src = src / _safe(self.h_scale).astype(np.float32)[None, None, :, None, :]
+        n_mu = src.shape[0]
+        tab = np.empty((n_mu + 2,) + src.shape[1:-1] + (2, src.shape[-1]), dtype=np.float32)
+        # one zenith node at a time, so the slopes' temporaries stay small; the table
+        # then holds the only copy of J (``source`` becomes a view of it)
+        for i in range(n_mu):
+            tab[i + 1, ..., 0, :] = src[i]
+            tab[i + 1, ..., 1, :] = _log_slopes(self.mus_nodes, np.asarray(src[i], dtype=np.float64), axis=2)
+        for pole, ring in ((0, 1), (n_mu + 1, n_mu)):
+            j = tab[ring, ..., 0, :]  # (n_phi, n_h, n_mus, n_wl); the phi nodes are equally spaced
+            jm = j.mean(axis=0)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                sl = np.where(jm > 0, (j * tab[ring, ..., 1, :]).mean(axis=0) / np.where(jm > 0, jm, 1.0),
+                              tab[ring, ..., 1, :].mean(axis=0))
+            tab[pole, ..., 0, :] = jm[None]
+            tab[pole, ..., 1, :] = sl[None]
+        self._mu_poles = np.concatenate([[-1.0], np.asarray(self.mu_nodes, dtype=float), [1.0]])
+        self._table = None  # a table of an older version (pickled solutions) is not used
+        if self.scattering is None:
+            self.source = np.moveaxis(tab[1:-1, ..., 0, :], -1, 0)  # the same values, a view: one copy kept
+        self._table_poles = tab
 
     def ground_irradiance_at(self, mu_s) -> np.ndarray:
         """Diffuse (sky) irradiance on the ground where the sun's zenith cosine is mu_s
@@ -257,6 +267,11 @@ class MultipleScatteringField:
 #: points per block in :meth:`MultipleScatteringField.source_at` (bounds its temporaries:
 #: the gathered rows are 16 x 2 x n_wl float32 a point, 21 MB at 41 wavelengths)
 _SOURCE_BLOCK = 4096
+
+#: serialises the first build of a field's interpolation table (the marcher's threads read
+#: the field at once; a test on the CI machine caught one reading ``_mu_poles`` between the
+#: table's publication and its nodes')
+_TABLE_LOCK = threading.Lock()
 
 
 def _corner_offsets(n_phi: int, n_h: int, n_mus: int) -> np.ndarray:
