@@ -127,3 +127,24 @@ def test_committed_truth_runs_are_read_when_the_cache_has_none(tmp_path):
     prof = bt.Scene("desert", -4.0, str(tmp_path)).mc_profile()
     assert bt.Scene("desert", -4.0, str(tmp_path)).mc_file(prof).endswith("_g0.2_proxy.npz")
     assert bt.Scene("desert", -4.0, str(tmp_path), "proxy", 0.0).mc_file(prof).endswith("_g0_proxy.npz")
+
+
+def test_a_round_of_paths_serves_the_directions_furthest_from_the_target_first():
+    """bench_truth's round planning: with the budget short, every direction's top-up is
+    scaled down alike and the largest batch (the noisiest directions) runs first."""
+    import importlib.util
+    import os
+
+    root = os.path.join(os.path.dirname(__file__), "..", "benchmarks")
+    spec = importlib.util.spec_from_file_location("bench_truth", os.path.join(root, "bench_truth.py"))
+    bt = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bt)
+    n = np.array([375_000, 375_000, 100_000, 100_000, 100_000])
+    more = np.array([760_000, 700_000, 20_000, 30_000, 5_000])
+    todo = more > 0.1 * n
+    plenty = bt.plan_round(n, more, todo, 1e-6, 1e9)
+    assert [r.tolist() for r, _ in plenty] == [[0, 1], [2, 3]] and [p for _, p in plenty] == [760_000, 30_000]
+    short = bt.plan_round(n, more, todo, 1e-3, 0.5 * 1e-3 * 1_510_000)  # half of what the round needs
+    assert short[0][0].tolist() == [0, 1] and short[0][1] == 380_000
+    assert all(p % 1000 == 0 for _, p in short)
+    assert bt.plan_round(n, more, np.zeros(5, bool), 1e-6, 1e9) == []
