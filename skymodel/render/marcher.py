@@ -306,6 +306,9 @@ class SkyMarcher:
         self.field: MultipleScatteringField = solution.field
         self.to_full = solution.to_full
         self._aureole = solution.aureole
+        # the peak-aureole table in float32 (:meth:`_aureole_gather`), made here: the
+        # marcher's threads share it
+        self._aureole_table32 = None if self._aureole is None else self._aureole[2].astype(np.float32)
         t2 = time.perf_counter()
         self._grid = None if s.exact else self._build_grid()
         self.timings["direction_grid_s"] = time.perf_counter() - t2
@@ -404,7 +407,7 @@ class SkyMarcher:
         cphi = np.where(den > 1e-12, (vs - mu * mus) / np.where(den > 1e-12, den, 1.0), 1.0)
         phi = np.arccos(np.clip(cphi, -1.0, 1.0))
         step = self.medium_ms.extinction_scaled.at(rings.h) * rings.dt[..., None]  # (G, S, W_ms)
-        weight = step_transmittance(step) * rings.dt[..., None]
+        weight = step_transmittance(step, dtype=np.float32) * rings.dt[..., None].astype(np.float32)
         scale = None
         if self.field.scattering is not None:  # sigma_s at the samples, once per ring (source_at)
             scale = self.field.scattering.at(rings.h)[:, None]  # (G, 1, S, W_ms)
@@ -432,30 +435,36 @@ class SkyMarcher:
         tau_peak) dt, (G, A, n_wl); tau_peak is the peak optical depth of the sun path to
         the point plus the view path from it. ``cos_theta`` (G, A); ``dt``, ``ext``,
         ``ext_s``, ``trans_s`` per ring; ``t_sun``, ``t_sun_s`` (G, A, S, n_wl). Directions
-        are taken ``block`` at a time (memory ~ block * S * n_wl * 8 B * 8)."""
+        are taken ``block`` at a time (memory ~ block * S * n_wl * 4 B * 8). In float32,
+        the precision of the sun's transmittances it reads (:meth:`_march`) and of the
+        solver's field; the sum over a ray's samples is good to a few 1e-7."""
         theta_g, tau_g, table = self._aureole
+        f32 = np.float32
+        table = self._aureole_table32
+        tau_g32 = tau_g.astype(f32)
         theta = np.arccos(np.clip(cos_theta, -1.0, 1.0))
         n_wl = ext.shape[-1]
         out = np.zeros(cos_theta.shape + (n_wl,))
         gn, an = np.nonzero(theta < theta_g[-1])
         n_tau = tau_g.size
         w_idx = np.arange(n_wl)
-        tiny = 1e-300
+        tiny = np.finfo(f32).tiny
         step = np.maximum(ext - ext_s, 0.0) * dt[..., None]  # peak scattering optical depth of each step
-        view = np.cumsum(step, axis=1) - 0.5 * step  # peak optical depth of the view path, per ring
-        seen = step * trans_s
+        view = (np.cumsum(step, axis=1) - 0.5 * step).astype(f32)  # peak optical depth of the view path, per ring
+        seen = (step * trans_s).astype(f32)
         for k in range(0, gn.size, block):
             g, a = gn[k:k + block], an[k:k + block]
-            ts, ts_s = t_sun[g, a], t_sun_s[g, a]
-            tau = np.log(np.maximum(ts_s, tiny) / np.maximum(ts, tiny))  # sun path
+            ts, ts_s = t_sun[g, a].astype(f32, copy=False), t_sun_s[g, a].astype(f32, copy=False)
+            tau = np.log(np.maximum(ts_s, tiny))  # sun path: log(T*_sun / T_sun)
+            tau -= np.log(np.maximum(ts, tiny))
             tau += view[g]  # + view path
-            np.clip(tau, 0.0, tau_g[-1], out=tau)
+            np.clip(tau, 0.0, tau_g32[-1], out=tau)
             x = theta[g, a] / theta_g[-1] * (theta_g.size - 1)
             i = np.clip(x.astype(int), 0, theta_g.size - 2)
-            fi = np.clip(x - i, 0.0, 1.0)[:, None, None]
+            fi = np.clip(x - i, 0.0, 1.0).astype(f32)[:, None, None]
             rows = (table[i] * (1 - fi) + table[i + 1] * fi).reshape(-1)  # each direction's angle: (n, n_tau, W)
             j = _tau_cells(tau_g, tau)
-            fj = (tau - tau_g[j]) / (tau_g[j + 1] - tau_g[j])
+            fj = (tau - tau_g32[j]) / (tau_g32[j + 1] - tau_g32[j])
             base = (np.arange(g.size)[:, None, None] * n_tau + j) * n_wl + w_idx  # index of (direction, tau_j, wl)
             c = rows[base] * (1 - fj) + rows[base + n_wl] * fj
             out[g, a] = (seen[g] * ts_s * c).sum(axis=1)
@@ -603,14 +612,14 @@ class SkyMarcher:
         ext, ext_s, ray, *aers = evaluate_many(lrs, rings.h)  # each (G, S, W)
         dtw = rings.dt[..., None]
         step_tau = ext * dtw
-        trans = step_transmittance(step_tau)  # each step's mean (exact for a source constant over it)
+        trans = step_transmittance(step_tau, dtype=np.float32)  # each step's mean (exact for a source constant over it)
         cos_theta = D @ self.sun  # (G, A)
         mus = self._sun_cosines(rings, D)  # (G, A, S)
         h_b = np.broadcast_to(rings.h[:, None, :], mus.shape)
         ms_on = self.field.orders > 1
         # toward the sun from every sample (G, A, S, W), the shadow included: the true
         # extinction and (with multiple scattering) the delta-M scaled one, one table lookup
-        t_sun, *scaled = self.sun_table.transmittances(h_b, mus, (0, 2) if ms_on else (0,))
+        t_sun, *scaled = self.sun_table.transmittances(h_b, mus, (0, 2) if ms_on else (0,), dtype=np.float32)
         pa = prof.aerosol_phase_at(cos_theta)  # (R, G, A, W)
         p_ray = prof.rayleigh_phase(cos_theta)  # (G, A, W)
         # single scattering: true extinction, full phase functions (with or without the
@@ -626,7 +635,7 @@ class SkyMarcher:
         rebalance = np.zeros_like(single)
         if ms_on:
             step_tau_s = ext_s * dtw
-            trans_s = step_transmittance(step_tau_s)
+            trans_s = step_transmittance(step_tau_s, dtype=np.float32)
             t_sun_s = scaled[0]
             first = self._delta_m_first_scattering(cos_theta, rings.dt, ray, regimes, aers, pa, c_aer, trans_s,
                                                    t_sun_s)
@@ -715,8 +724,10 @@ class _Rings:
 
 def _column(weight, values):
     """sum_s weight[g, s, w] values[g, a, s, w] -> (G, A, W): a quantity that depends on
-    the ring only (``weight``) integrated against one that depends on the direction."""
-    return np.einsum("gsw,gasw->gaw", weight, values)
+    the ring only (``weight``) integrated against one that depends on the direction, in
+    the precision of ``values`` (float32 for the sun's transmittances: a sum of S products,
+    good to a few 1e-7; a float64 weight would have the einsum convert every value)."""
+    return np.einsum("gsw,gasw->gaw", weight.astype(values.dtype, copy=False), values)
 
 
 def _tau_cells(nodes, tau):
@@ -729,7 +740,8 @@ def _tau_cells(nodes, tau):
     if n <= 3 or nodes[0] != 0.0 or not np.allclose(ratio, ratio[0], rtol=1e-9, atol=0.0):
         return np.clip(np.searchsorted(nodes, tau, side="right") - 1, 0, n - 2)
     with np.errstate(divide="ignore"):
-        j = np.floor(np.log(np.maximum(tau, 1e-300) / nodes[1]) / np.log(ratio[0])).astype(np.intp) + 1
+        tiny = np.finfo(tau.dtype).tiny if np.issubdtype(np.asarray(tau).dtype, np.floating) else 1e-300
+        j = np.floor(np.log(np.maximum(tau, tiny) / nodes[1]) / np.log(ratio[0])).astype(np.intp) + 1
     np.clip(j, 0, n - 2, out=j)
     j += (tau >= nodes[j + 1]) & (j < n - 2)
     j -= (tau < nodes[j]) & (j > 0)

@@ -176,9 +176,18 @@ class SunTransmittance:
         """exp(-tau) times the visible fraction of the disc, (…, n_wl)."""
         return self.transmittances(altitudes_m, mu_sun, (which,))[0]
 
-    def transmittances(self, altitudes_m, mu_sun, which=(0,)):
+    def transmittances(self, altitudes_m, mu_sun, which=(0,), dtype=np.float64):
         """:meth:`transmittance` of each medium in ``which`` at the same points, with one
-        table lookup: a list of (…, n_wl) arrays."""
-        vis = self.visible_fraction(altitudes_m, mu_sun)[..., None]
-        return [np.exp(-(tau_k @ self.media[w].weights)) * vis
-                for w, tau_k in zip(which, self._basis_depths(altitudes_m, mu_sun, tuple(which)))]
+        table lookup: a list of (…, n_wl) arrays of ``dtype``. In float32 (the marcher's
+        per-sun march) the optical depths are summed from the basis and exponentiated in
+        float32: exp is 8x cheaper there, and a transmittance needs no more than float32's
+        relative 6e-8."""
+        vis = self.visible_fraction(altitudes_m, mu_sun)[..., None].astype(dtype, copy=False)
+        out = []
+        for w, tau_k in zip(which, self._basis_depths(altitudes_m, mu_sun, tuple(which))):
+            t = tau_k.astype(dtype, copy=False) @ self.media[w].weights.astype(dtype, copy=False)
+            np.negative(t, out=t)
+            np.exp(t, out=t)
+            t *= vis
+            out.append(t)
+        return out
