@@ -173,6 +173,44 @@ def march_samples(p, d, t0, t1, n: int, ground_radius: float):
     return t, dt
 
 
+def samples_by_depth(edges_fine, sigma_fine, n: int, depth_share: float):
+    """Midpoint quadrature nodes (t, dt), each (G, n), along G rays, placed by optical depth.
+
+    ``edges_fine`` (G, F + 1): a fine march's step edges along each ray (from
+    :func:`march_samples`, whose coordinate u runs evenly over them); ``sigma_fine`` (G, F):
+    an extinction coefficient at its midpoints (per metre). The n coarse steps are equal
+    steps of c = depth_share * tau(t) / tau_total + (1 - depth_share) * u: a share of them
+    follows the ray's optical depth, the rest the fine march's own spacing (so no step spans
+    a long stretch of thin air). Edges are interpolated linearly in c between the fine ones.
+
+    Why: a view ray grazing the horizon (85-89 degrees from the zenith) holds most of its
+    optical depth in its first few tens of kilometres, where the quadratic map of
+    :func:`march_samples` puts a third of its steps; with the sun low the sunlit source then
+    changes fast over each step. With 64 steps so placed (half by depth, 256 fine steps) the
+    sky at sun 5 degrees lands where 512 quadratically spaced steps land, and 0.2-0.5 % below
+    64 of them on the 85-89 degree rings (rural AOD 0.2, desert AOD 0.5, against the Monte
+    Carlo tracer; docs/accuracy.md)."""
+    e = np.asarray(edges_fine, dtype=float)
+    g, f1 = e.shape
+    if not 0.0 <= depth_share < 1.0:
+        raise ValueError(f"depth_share must be in [0, 1), got {depth_share}")
+    tau = np.concatenate([np.zeros((g, 1)), np.cumsum(np.asarray(sigma_fine, float) * np.diff(e, axis=1), axis=1)],
+                         axis=1)
+    c = depth_share * tau / np.maximum(tau[:, -1:], 1e-300) + (1.0 - depth_share) * np.linspace(0.0, 1.0, f1)
+    # one search for all rays: ray k's coordinate shifted by 2k keeps the rows apart
+    shift = 2.0 * np.arange(g)[:, None]
+    flat = (c + shift).ravel()
+    q = np.linspace(0.0, 1.0, n + 1)[None, :] + shift
+    i = np.searchsorted(flat, q.ravel(), side="right").reshape(g, n + 1) - 1
+    i = np.clip(i, np.arange(g)[:, None] * f1, np.arange(g)[:, None] * f1 + f1 - 2)
+    lo, hi = flat[i], flat[i + 1]
+    frac = np.clip((q - lo) / np.maximum(hi - lo, 1e-300), 0.0, 1.0)
+    ef = e.ravel()
+    edges = ef[i] + frac * (ef[i + 1] - ef[i])
+    edges[:, 0], edges[:, -1] = e[:, 0], e[:, -1]
+    return 0.5 * (edges[:, 1:] + edges[:, :-1]), np.diff(edges, axis=1)
+
+
 def step_transmittance(step_tau: np.ndarray, axis: int = 1, dtype=np.float64) -> np.ndarray:
     """Mean transmittance over each quadrature step of a ray, from the start of the ray:
     with tau_k the optical depth of step k (``step_tau``, steps along ``axis``) and T_k
