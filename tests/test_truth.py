@@ -116,6 +116,8 @@ def test_committed_truth_runs_are_read_when_the_cache_has_none(tmp_path):
             assert np.all(z["mean"] > 0) and np.all(z["n"] > 0) and z["views"].shape == (z["mean"].shape[0], 2)
             if "_60_" in f or "_20_" in f:
                 assert np.max(z["se"] / z["mean"]) <= 0.0065, f
+            if "_5_" in f:  # topped up to 0.52 % (2026-11-27)
+                assert np.max(z["se"] / z["mean"]) <= 0.0055, f
             if "rural_-4_" in f:  # topped up to the rule (0.5 % per direction)
                 assert np.max(z["se"] / z["mean"]) <= 0.005, f
     spec = importlib.util.spec_from_file_location("bench_truth", os.path.join(root, "bench_truth.py"))
