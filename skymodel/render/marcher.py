@@ -445,7 +445,7 @@ class SkyMarcher:
         are taken ``block`` at a time (memory ~ block * S * n_wl * 4 B * 8). In float32,
         the precision of the sun's transmittances it reads (:meth:`_march`) and of the
         solver's field; the sum over a ray's samples is good to a few 1e-7."""
-        theta_g, tau_g, table = self._aureole
+        theta_g, tau_g, _ = self._aureole
         f32 = np.float32
         table = self._aureole_table32
         tau_g32 = tau_g.astype(f32)
@@ -590,7 +590,8 @@ class SkyMarcher:
         if share > 0.0:  # placed by the optical depth at the profile's middle wavelength
             tf, dtf = march_samples(p, d0, t0, t1, _FINE_VIEW_STEPS, self.R)
             ext = self.medium.extinction
-            sigma = ext.basis_at(np.maximum(altitude_along(p, d0, tf, self.R), 0.0)) @ ext.weights[:, ext.weights.shape[1] // 2]
+            middle = ext.weights[:, ext.weights.shape[1] // 2]
+            sigma = ext.basis_at(np.maximum(altitude_along(p, d0, tf, self.R), 0.0)) @ middle
             edges = np.concatenate([t0[:, None], t0[:, None] + np.cumsum(dtf, axis=1)], axis=1)
             t, dt = samples_by_depth(edges, sigma, n, share)
         else:
