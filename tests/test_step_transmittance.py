@@ -109,3 +109,12 @@ def test_steps_by_depth_converge_the_grazing_sky_at_a_low_sun():
     by_depth = np.abs(sky(view_steps=64) / converged - 1).max()
     by_map = np.abs(sky(view_steps=64, view_depth_share=0.0) / converged - 1).max()
     assert by_depth < 0.0015 and by_map > 0.005  # measured: 0.10 % and 0.95 %
+
+
+def test_a_bad_depth_share_is_refused_when_the_settings_are_made():
+    from skymodel.errors import SkymodelInputError
+
+    for bad in (-0.1, 1.0, float("nan")):
+        with pytest.raises(SkymodelInputError, match="view_depth_share"):
+            MarchSettings(view_depth_share=bad)
+    assert MarchSettings(view_depth_share=0.0).view_depth_share == 0.0

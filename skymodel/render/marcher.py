@@ -124,6 +124,11 @@ class MarchSettings:
     chunk: int = 2048  # directions per batch (memory ~ chunk * view_steps * n_wl * 8 B * 6)
     earth_shadow: bool = True  # False: the planet blocks no sunlight (for measuring the shadow's effect)
 
+    def __post_init__(self):
+        # checked when the settings are made, before any table or solve
+        if not 0.0 <= float(self.view_depth_share) <= 0.95:
+            raise SkymodelInputError("view_depth_share", self.view_depth_share, "a number in [0, 0.95]")
+
 
 @dataclass
 class SkyRadiance:
