@@ -959,7 +959,7 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
             r0=rays.r0, mu0=rays.mu0, t=rays.t, dt=rays.dt, h=rays.h, R=profile.planet_radius_m, hits=rays.hits,
             ground_t=rays.ground_t, h_nodes=grid.h_nodes, mu_nodes=grid.mu_nodes, phi_nodes=grid.phi_nodes,
             mus_nodes=grid.mus_nodes, wavelengths_nm=grid.wavelengths_nm, probe_step_nm=spherical_probe_step_nm,
-            h_scale=sigma.get("sigma_nodes"), sample_scale=sigma.get("sigma_samples"))
+            **sigma)
     # the first order's radiance goes straight into the series, which lets it go after order 2
     # (held here, it would keep one more field-sized array alive through every order)
     series = sum_scattering_orders(first_order_radiance(profile, medium, sun_table, grid, rays, M, G,
@@ -1123,7 +1123,7 @@ class _SphericalTransport:
 
     def __init__(self, *, ih, fh, im, fm, weight, r0, mu0, t, dt, h, R, hits, ground_t, h_nodes, mu_nodes, phi_nodes,
                  mus_nodes, wavelengths_nm, probe_step_nm, max_elevation_deg: float = 10.0,
-                 max_elements: int = 2_000_000, h_scale=None, sample_scale=None):
+                 max_elements: int = 2_000_000, sigma_nodes=None, sigma_samples=None):
         wl = np.asarray(wavelengths_nm, float)
         n_probe = int(np.clip(np.ceil((wl[-1] - wl[0]) / max(probe_step_nm, 1e-9)) + 1, 1, wl.size))
         self.probe = np.unique(np.round(np.linspace(0, wl.size - 1, n_probe)).astype(int))
@@ -1138,11 +1138,12 @@ class _SphericalTransport:
         # the four (altitude, zenith) nodes of every sample and their weights, (rays, steps, 4)
         self.node = np.stack([(ih + dh) * self.n_mu + (im + dm) for dh in (0, 1) for dm in (0, 1)], axis=-1)
         self.node_w = np.stack([wh * wm for wh in (1 - fh, fh) for wm in (1 - fm, fm)], axis=-1).astype(f32)
-        # with the source read as sigma_s(h) J / sigma_s (``h_scale`` (n_h, n_wl) at the nodes,
-        # ``sample_scale`` (rays, steps, n_wl) at the samples), as the column transport M reads it
-        if sample_scale is not None:
-            weight = weight * sample_scale
-        self.inv_sigma = None if h_scale is None else (1.0 / _safe(h_scale))[:, self.probe].astype(f32)  # (n_h, P)
+        # with the source read as sigma_s(h) J / sigma_s (``sigma_nodes`` (n_h, n_wl) at the nodes,
+        # ``sigma_samples`` (rays, steps, n_wl) at the samples), as the column transport M reads it
+        if sigma_samples is not None:
+            weight = weight * sigma_samples
+        self.inv_sigma = (None if sigma_nodes is None  # (n_h, P)
+                          else (1.0 / _safe(sigma_nodes))[:, self.probe].astype(f32))
         self.weight = np.ascontiguousarray(weight[..., self.probe], dtype=f32)  # (rays, steps, n_probe)
         mus_sub = mus_nodes[self.sub]
         self.cs = _ray_sun_cosine(mu0, phi_nodes, mus_sub)  # (rays, n_p)
