@@ -73,8 +73,10 @@ TRANSPORT_COPIES = 1.6
 #: nodes of the sky-view table, or the pixels near the sun of a render marched directly (the direction
 #: grid's own march keeps far less: 0.016 GiB at preview 128x64). Measured with ``tracemalloc`` at
 #: f78aa99: 20.7 (preview) and 19.7 (final) for pieces of 1024 directions; 26 before the speed work of
-#: #23, 15-16.5 before the marcher split its pieces over threads.
-BAND_COPIES = 20.0
+#: #23, 15-16.5 before the marcher split its pieces over threads. 15.2 at 318964e (final 512x256, a piece
+#: 0.599 GiB above its entry: ``benchmarks/bench_memory_phases.py final 512x256``), after the per-sun
+#: march moved to float32 (e1e79d4).
+BAND_COPIES = 15.5
 #: The sky-view table's build over the marching bands (its nodes: the grid and the sun's cap) [bytes]
 #: (measured: the colour render's preview 1024x512 peak over its 512x256 peak, 0.17-0.22 GiB at 9fe0b71;
 #: at final the table's renders peaked at 1.15-1.21 GiB against 1.15 for the marched 512x256: 0.15 splits them).
