@@ -11,7 +11,10 @@ from skymodel.render.peak_diffuse import peak_of, projected_kernel
 from skymodel.render import marcher as _marcher
 from skymodel.render.marcher import solver_wavelengths
 
-STATE = {}
+import os
+import threading
+STATE = {"aureole_straight": os.environ.get("HALO_AUREOLE_STRAIGHT", "1") == "1"}
+_LOCAL = threading.local()
 PROBES_NM = (440.0, 500.0, 550.0, 600.0, 660.0)
 MAX_ELEV_DEG = 25.0
 MAX_H_M = 15000.0
@@ -99,16 +102,36 @@ def patched_factory(orig):
         STATE["corr"] = (probes, corr, st.h_nodes, st.x_nodes)
         wl_full = np.asarray(prof.wavelengths_nm, float)
         wl_ms = solver_wavelengths(wl_full, STATE["ms_step"])
+        st.media.append(st.media[2])  # 3: delta-M's straight path, for the peak aureole
+        st.tables.append(st.tables[2])
         for w, wl in ((1, wl_ms), (2, wl_full)):
             m = st.media[w]
             st.tables[w] = np.concatenate([st.tables[w], corr], axis=-1)
             st.media[w] = _Shim(None, np.vstack([m.weights, _hat(probes, wl)]))
+        if STATE.get("aureole_straight", True):
+            orig_tr = st.transmittances
+
+            def tr(h, mus, which=(0,), dtype=np.float64):
+                res = orig_tr(h, mus, which, dtype)
+                if tuple(which) == (0, 2):
+                    _LOCAL.straight = orig_tr(h, mus, (3,), dtype)[0]
+                return res
+            st.transmittances = tr
         return st
     return make
+
+
+def _aureole_gather_straight(orig):
+    def gather(self, cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s):
+        if STATE.get("aureole_straight", True):
+            t_sun_s = _LOCAL.straight
+        return orig(self, cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s)
+    return gather
 
 
 def install(profile, settings):
     STATE.update(profile=profile, cutoff=settings.delta_m_cutoff_deg, ms_step=settings.ms_wavelength_step_nm)
     if not getattr(_marcher, "_halo_patched", False):
         _marcher.SunTransmittance = patched_factory(_marcher.SunTransmittance)
+        _marcher.SkyMarcher._aureole_gather = _aureole_gather_straight(_marcher.SkyMarcher._aureole_gather)
         _marcher._halo_patched = True

@@ -23,7 +23,11 @@ For a view ray from the observer O in direction v (looking along v) the radiance
 * the peak aureole: sunlight scattered two or more times inside the aerosols' truncated
   forward peaks, which delta-M leaves out of the solver, added per point of the ray in
   the small-angle approximation (:mod:`skymodel.render.aureole`,
-  ``MarchSettings.peak_aureole``); it is counted in ``multiple``.
+  ``MarchSettings.peak_aureole``); it is counted in ``multiple``;
+* near a low sun the delta-M beam (T_sun with the scaled extinction, read by the solver and
+  the delta-M first scattering below) carries the cut peak's light along its own, bent
+  paths, not the straight sun path (:mod:`skymodel.render.peak_paths`,
+  ``MarchSettings.peak_paths``); the peak aureole keeps the straight path.
 
 The components of :class:`SkyRadiance`: ``single`` is true single scattering (J_1 seen
 through the true extinction, full phase functions: exactly what an ``orders=1`` render
@@ -60,6 +64,7 @@ from skymodel.numerics import linear_interp_matrix
 from skymodel.optics.profile import LayeredProfile, OpticalProfile
 from skymodel.render.medium import evaluate_many, factor_medium, march_samples, samples_by_depth, step_transmittance
 from skymodel.render.multiple_scattering import MultipleScatteringField, solve_multiple_scattering
+from skymodel.render.peak_paths import add_peak_paths
 from skymodel.render.rays import altitude_along, atmosphere_segment, sun_direction
 from skymodel.render.sun_transmittance import SunTransmittance
 from skymodel.render.threads import SOLVER_THREADS
@@ -120,6 +125,7 @@ class MarchSettings:
     spherical_probe_step_nm: float = 100.0  # wavelength spacing of the spherical correction (orders >= 2)
     peak_aureole: bool = True  # add the light scattered 2+ times in the cut forward peaks (skymodel.render.aureole)
     peak_diffuse: bool = False  # scatter the diffuse light near the horizon in the cut peaks (skymodel.render.peak_diffuse)
+    peak_paths: bool = True  # delta-M's sun beam near a low sun with the cut peak's light on bent paths (skymodel.render.peak_paths)
     source_by_scattering: bool = True  # read J between altitude nodes as sigma_s(h) J/sigma_s (multiple_scattering.source_at)
     chunk: int = 2048  # directions per batch (memory ~ chunk * view_steps * n_wl * 8 B * 6)
     earth_shadow: bool = True  # False: the planet blocks no sunlight (for measuring the shadow's effect)
@@ -240,6 +246,8 @@ def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> 
     sun_table = SunTransmittance([medium.extinction, medium_ms.extinction_scaled, medium.extinction_scaled], R,
                                  top, s.sun_table_altitudes, s.sun_table_x, s.sun_table_steps,
                                  earth_shadow=s.earth_shadow)
+    if s.peak_paths:
+        add_peak_paths(sun_table, profile, medium, s.delta_m_cutoff_deg, wl_ms)
     timings = {"tables_s": time.perf_counter() - t_start}
     t1 = time.perf_counter()
     ms_field: MultipleScatteringField = solve_multiple_scattering(
@@ -640,7 +648,8 @@ class SkyMarcher:
         ms_on = self.field.orders > 1
         # toward the sun from every sample (G, A, S, W), the shadow included: the true
         # extinction and (with multiple scattering) the delta-M scaled one, one table lookup
-        t_sun, *scaled = self.sun_table.transmittances(h_b, mus, (0, 2) if ms_on else (0,), dtype=np.float32)
+        t_sun, *scaled = self.sun_table.transmittances(h_b, mus, (0, 2) if ms_on else (0,), dtype=np.float32,
+                                                       straight=(2,) if ms_on and self._aureole is not None else ())
         pa = prof.aerosol_phase_at(cos_theta)  # (R, G, A, W)
         p_ray = prof.rayleigh_phase(cos_theta)  # (G, A, W)
         # single scattering: true extinction, full phase functions (with or without the
@@ -662,7 +671,8 @@ class SkyMarcher:
                                                    t_sun_s)
             rebalance = first - single
             if self._aureole is not None:
-                aureole = self._aureole_gather(cos_theta, rings.dt, ext, ext_s, t_sun, t_sun_s, trans_s)
+                # the aureole's own small-angle model of the peak light keeps the straight path
+                aureole = self._aureole_gather(cos_theta, rings.dt, ext, ext_s, t_sun, scaled[1], trans_s)
         # ground seen directly: direct sun and (from the solver) diffuse sky light
         ground = np.zeros_like(single)
         ms_ground = np.zeros_like(single)

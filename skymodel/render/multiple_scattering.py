@@ -1029,7 +1029,7 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
     weights = np.stack([(m.at(h) * (dt[..., None] * trans)).astype(f32) for m in species_sigma_at], axis=-1)
     weights = np.ascontiguousarray(weights.transpose(0, 2, 3, 1))
     tab = st.tables[1].astype(f32)  # (n_h_sun, n_x, k) optical depth of the basis functions
-    wk = st.media[1].weights.astype(f32)  # (k, n_wl)
+    wk = st.weights[1].astype(f32)  # (k, n_wl)
     minus_wk_t = -wk.T  # (the same memory layout as wk.T: the same matrix product)
     n_x = st.x_nodes.size
     x_scale = (n_x - 1) / st.x_nodes[-1]

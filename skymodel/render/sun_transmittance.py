@@ -99,6 +99,21 @@ class SunTransmittance:
         in_threads(rows, range(0, n_altitudes, _TABLE_ROWS), SOLVER_THREADS)
         splits = np.cumsum([m.rank for m in self.media])[:-1]
         self.tables = np.split(table, splits, axis=-1)
+        # each medium's weights (rank, n_wl); add_depth_columns appends rows (and table columns)
+        self.weights = [m.weights for m in self.media]
+        self.base_ranks = [m.rank for m in self.media]
+
+    def add_depth_columns(self, which: int, columns, weights) -> None:
+        """Add an optical depth to medium ``which``: ``columns`` (n_h, n_x, P) at the table's
+        nodes, read with the table's interpolation and ``weights`` (P, n_wl) to the medium's
+        wavelengths (:mod:`skymodel.render.peak_paths`). ``straight=`` of
+        :meth:`transmittances` still gives the medium without them."""
+        columns = np.asarray(columns, dtype=float)
+        weights = np.asarray(weights, dtype=float)
+        assert columns.shape[:2] == self.tables[which].shape[:2] and columns.shape[2] == weights.shape[0]
+        assert weights.shape[1] == self.weights[which].shape[1]
+        self.tables[which] = np.concatenate([self.tables[which], columns], axis=-1)
+        self.weights[which] = np.concatenate([self.weights[which], weights], axis=0)
 
     def _distance_to_top(self, r, mu):
         disc = r * r * (mu * mu - 1.0) + self.r_top**2
@@ -152,9 +167,9 @@ class SunTransmittance:
         ``altitudes_m`` whose local vertical makes cosine ``mu_sun`` with the sun
         direction. Directions under the horizon are clamped to the grazing ray (their
         light is removed by :meth:`visible_fraction`)."""
-        return self._basis_depths(altitudes_m, mu_sun, (which,))[0] @ self.media[which].weights
+        return self.basis_depths(altitudes_m, mu_sun, (which,))[0] @ self.weights[which]
 
-    def _basis_depths(self, altitudes_m, mu_sun, which):
+    def basis_depths(self, altitudes_m, mu_sun, which):
         """The tabulated optical depths of the basis functions of each medium in ``which``
         (…, rank), interpolated at the points (one lookup for all the media)."""
         h = np.clip(np.asarray(altitudes_m, dtype=float), self.h_nodes[0], self.h_nodes[-1])
@@ -170,24 +185,34 @@ class SunTransmittance:
         tab = self.tables[which[0]] if len(which) == 1 else np.concatenate([self.tables[w] for w in which], axis=-1)
         tau_k = ((tab[i, j] * (1 - fj) + tab[i, j + 1] * fj) * (1 - fi)
                  + (tab[i + 1, j] * (1 - fj) + tab[i + 1, j + 1] * fj) * fi)
-        return np.split(tau_k, np.cumsum([self.media[w].rank for w in which])[:-1], axis=-1)
+        return np.split(tau_k, np.cumsum([self.weights[w].shape[0] for w in which])[:-1], axis=-1)
 
     def transmittance(self, altitudes_m, mu_sun, which: int = 0):
         """exp(-tau) times the visible fraction of the disc, (…, n_wl)."""
         return self.transmittances(altitudes_m, mu_sun, (which,))[0]
 
-    def transmittances(self, altitudes_m, mu_sun, which=(0,), dtype=np.float64):
+    def transmittances(self, altitudes_m, mu_sun, which=(0,), dtype=np.float64, straight=()):
         """:meth:`transmittance` of each medium in ``which`` at the same points, with one
-        table lookup: a list of (…, n_wl) arrays of ``dtype``. In float32 (the marcher's
-        per-sun march) the optical depths are summed from the basis and exponentiated in
-        float32: exp is 8x cheaper there, and a transmittance needs no more than float32's
-        relative 6e-8."""
+        table lookup: a list of (…, n_wl) arrays of ``dtype``; then, for each medium in
+        ``straight`` (also in ``which``), the same without the columns of
+        :meth:`add_depth_columns` (the very array where it has none). In float32 (the
+        marcher's per-sun march) the optical depths are summed from the basis and
+        exponentiated in float32: exp is 8x cheaper there, and a transmittance needs no more
+        than float32's relative 6e-8."""
         vis = self.visible_fraction(altitudes_m, mu_sun)[..., None].astype(dtype, copy=False)
-        out = []
-        for w, tau_k in zip(which, self._basis_depths(altitudes_m, mu_sun, tuple(which))):
-            t = tau_k.astype(dtype, copy=False) @ self.media[w].weights.astype(dtype, copy=False)
+        which = tuple(which)
+        depths = dict(zip(which, self.basis_depths(altitudes_m, mu_sun, which)))
+
+        def trans(tau_k, weights):
+            t = tau_k.astype(dtype, copy=False) @ weights.astype(dtype, copy=False)
             np.negative(t, out=t)
             np.exp(t, out=t)
             t *= vis
-            out.append(t)
+            return t
+
+        out = [trans(depths[w], self.weights[w]) for w in which]
+        for w in straight:
+            k = self.base_ranks[w]
+            out.append(out[which.index(w)] if self.weights[w].shape[0] == k
+                       else trans(depths[w][..., :k], self.weights[w][:k]))
         return out

@@ -1,0 +1,245 @@
+"""The delta-M sun beam near a low sun: the cut forward peak's light on its own, bent paths.
+
+Delta-M (:mod:`skymodel.render.medium`) books the light that aerosols scatter into their cut
+forward peak (a 12-degree cone in every preset) as not scattered: it goes on along the sun's
+straight path, through the same air as the direct beam, with the scaled extinction tau*.
+So every point's "sun" in the solver and in the marcher's delta-M first scattering is
+exp(-tau*) along the straight line. Where the air along that line changes little with the
+direction, that is right. Near a low sun it is not: the straight path to a point low in the
+boundary layer is the densest there is (rural aerosol, sun on the horizon: a direct beam of
+2e-10 at 650 nm on the ground), while light turned by a few degrees reaches the point along
+lines that cross far less air, or meet the ground (light from below the horizon does not
+arrive at all). Against the Monte Carlo truth (rural AOD 0.2, ``final``) delta-M's straight
+path left the horizon toward a sun at 0 degrees 5-9 % low at 650 nm out to 45 degrees of
+azimuth, and the horizon of a sun at 5 degrees 1-2 % high (docs/accuracy.md).
+
+This module replaces, at the nodes of the sun table (:class:`SunTransmittance`), delta-M's
+beam by the direct beam plus the light turned once into the peak on its way:
+
+    exp(-tau_eff) = exp(-tau) + sum_x k(x) integral ds sigma_peak(Q) T(Q -> sun) T*(Q -> P),
+
+Q on the line that reaches the point P from elevation e_sun + x, k the cut peak projected on
+the elevation axis (:func:`skymodel.render.peak_diffuse.projected_kernel`; offsets in
+azimuth change a path's air little), sigma_peak the peak's share of aerosol scattering, T the
+true extinction (the direct beam up to Q), T* the scaled one (further turns in the peak go
+on forward). With x = 0 alone the integral is exp(-tau*) - exp(-tau) exactly: delta-M. The
+difference tau_eff - tau* is added to the table's delta-M media as extra columns, at a few
+probe wavelengths read linearly in wavelength (:meth:`SunTransmittance.add_depth_columns`),
+so the solver's first order, its spherical transport, the marcher's delta-M first
+scattering and the ground all see it. The peak aureole (:mod:`skymodel.render.aureole`)
+keeps the straight path: it is its own small-angle model of the same light seen near the sun.
+
+Only nodes whose sun is within :data:`MAX_ELEVATION_DEG` of the local horizon and below
+:data:`MAX_ALTITUDE_M` get a term (elsewhere the lines differ little; measured in
+``tests/test_peak_paths.py``); nodes in the Earth's shadow get none (the bent light that
+reaches the shadow is left out).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from skymodel.render.medium import LowRank
+from skymodel.render.peak_diffuse import peak_of, projected_kernel
+from skymodel.render.threads import SOLVER_THREADS, in_threads
+
+#: Nodes whose sun stands higher than this above the local horizon (degrees) keep delta-M's beam.
+MAX_ELEVATION_DEG = 20.0
+#: ... and nodes above this altitude (metres).
+MAX_ALTITUDE_M = 10_000.0
+#: Lowest sun elevation above the local horizon (degrees) of a node that gets the term (the
+#: solar disc's radius below it, the point is in the Earth's shadow).
+MIN_ABOVE_HORIZON_DEG = -0.3
+#: D is computed on every this-many-th altitude node of the sun table (linear in rho between).
+ROW_STRIDE = 2
+#: Sun elevations the bent beam is computed at (:func:`elevation_nodes`), then read linearly.
+N_ELEVATIONS = 32
+#: Step (degrees) of the elevation offsets x over the projected peak.
+OFFSET_STEP_DEG = 1.0
+#: Samples along each line (geometric in distance, from LINE_FIRST_M out to LINE_LENGTH_M).
+LINE_STEPS = 64
+LINE_FIRST_M = 20.0
+#: Length of each line (metres): past it, a low line has left the atmosphere.
+LINE_LENGTH_M = 800e3
+#: Probe wavelengths: this many, evenly over the profile's range (the term is smooth in wavelength).
+N_PROBES = 5
+#: Nodes per batch (memory ~ batch x offsets x steps x ~80 bytes).
+NODE_BATCH = 64
+
+
+def probe_indices(wavelengths_nm, n: int = N_PROBES) -> np.ndarray:
+    """Indices of ``n`` wavelengths spread evenly over the grid (the ends included)."""
+    wl = np.asarray(wavelengths_nm, float)
+    targets = np.linspace(wl.min(), wl.max(), min(n, wl.size))
+    return np.unique([int(np.argmin(np.abs(wl - t))) for t in targets])
+
+
+def hat_weights(probes_nm, wavelengths_nm) -> np.ndarray:
+    """(P, n_wl): linear interpolation from the probe wavelengths to ``wavelengths_nm``
+    (flat beyond the ends)."""
+    src = np.asarray(probes_nm, float)
+    dst = np.asarray(wavelengths_nm, float)
+    w = np.zeros((src.size, dst.size))
+    if src.size == 1:
+        w[0] = 1.0
+        return w
+    i = np.clip(np.searchsorted(src, dst) - 1, 0, src.size - 2)
+    f = np.clip((dst - src[i]) / (src[i + 1] - src[i]), 0.0, 1.0)
+    cols = np.arange(dst.size)
+    np.add.at(w, (i, cols), 1.0 - f)
+    np.add.at(w, (i + 1, cols), f)
+    return w
+
+
+def _kernels(profile, medium, probes, offsets_rad):
+    """Per aerosol regime with a cut peak: (regime, k (n_offsets, P) normalised to sum 1)."""
+    peaks = peak_of(profile, medium)
+    out = []
+    for r in range(len(medium.aerosol)):
+        if not np.any(medium.forward_fraction[r, probes] > 0):
+            continue
+        x, k = projected_kernel(profile.aerosol_phase_angles_deg, peaks[r][:, probes])
+        kk = np.stack([np.interp(offsets_rad, x, k[:, p], left=0.0, right=0.0) for p in range(probes.size)], axis=1)
+        total = kk.sum(axis=0)
+        out.append((r, kk / np.where(total > 0, total, 1.0)))
+    return out
+
+
+
+
+def elevation_nodes(n: int = N_ELEVATIONS) -> np.ndarray:
+    """Sun elevations above the local horizon (degrees) of the nodes the bent beam is
+    computed on, from :data:`MIN_ABOVE_HORIZON_DEG` to :data:`MAX_ELEVATION_DEG`, crowded
+    toward the horizon (the beam changes fastest there): evenly in asinh(e / 1 degree)."""
+    lo, hi = np.arcsinh(MIN_ABOVE_HORIZON_DEG), np.arcsinh(MAX_ELEVATION_DEG)
+    return np.sinh(np.linspace(lo, hi, n))
+
+
+def horizon_elevation_deg(st, altitudes_m) -> np.ndarray:
+    """Elevation (degrees) of the local horizon seen from ``altitudes_m`` (<= 0)."""
+    r = st.R + np.maximum(np.asarray(altitudes_m, float), 0.0)
+    return -np.degrees(np.arccos(np.clip(st.R / r, -1.0, 1.0)))
+
+
+def bent_minus_straight(sun_table, profile, medium, cutoff_deg: float, altitudes_m, elevations_deg, *,
+                        true_medium: int = 0, scaled_medium: int = 2):
+    """D = B_bent - B_straight at points of ``altitudes_m`` (n_h,) and ``elevations_deg``
+    (n_h, n_e; local sun elevation, degrees): (probe wavelengths (P,) nm, D (n_h, n_e, P)), per unit solar
+    irradiance. B is the peak light of the module docstring's integral, B_straight its x = 0
+    line alone (exactly exp(-tau*) - exp(-tau), delta-M's share), both from the same
+    quadrature so that its error cancels where the two differ little."""
+    st = sun_table
+    wl = np.asarray(profile.wavelengths_nm, float)
+    pi = probe_indices(wl)
+    probes = wl[pi]
+    hh = np.broadcast_to(np.asarray(altitudes_m, float)[:, None], np.shape(elevations_deg))
+    ee = np.asarray(elevations_deg, float)
+    out = np.zeros(hh.shape + (pi.size,))
+    n_half = int(np.ceil(float(cutoff_deg) / OFFSET_STEP_DEG)) + 1
+    offsets = np.radians(np.arange(-n_half, n_half + 1) * OFFSET_STEP_DEG)  # 0 among them
+    kernels = _kernels(profile, medium, pi, offsets)
+    mu = np.sin(np.radians(ee))
+    vis = st.visible_fraction(hh, mu)
+    todo = np.nonzero(vis > 1e-6)
+    if not kernels or todo[0].size == 0:
+        return probes, out
+    w_true = st.weights[true_medium][:, pi]
+    ext_s = (medium.extinction_scaled, medium.extinction_scaled.weights[:, pi])
+    # the peak's scattering coefficient f sigma_aerosol (each LowRank has its own basis)
+    sig_peak = [(medium.aerosol[r], medium.aerosol[r].weights[:, pi] * medium.forward_fraction[r, pi][None, :], k)
+                for r, k in kernels]
+    # the scaled extinction and each peak's coefficient from one stacked basis (shared altitude nodes)
+    lrs = [ext_s[0]] + [lr for lr, _, _ in sig_peak]
+    stacked = LowRank(lrs[0].nodes_m, np.concatenate([m.basis for m in lrs], axis=1), np.zeros((1, 1)),
+                      lrs[0].layered, lrs[0].top_m)
+    ends = np.cumsum([m.rank for m in lrs])
+    spans = list(zip(np.concatenate([[0], ends[:-1]]), ends))
+    coef_weights = [ext_s[1]] + [w for _, w, _ in sig_peak]
+    s = np.concatenate([[0.0], np.geomspace(LINE_FIRST_M, LINE_LENGTH_M, LINE_STEPS - 1)])
+    ds = np.diff(s)
+    i0 = n_half  # the x = 0 line
+    R, top = st.R, st.top
+    def batch(a):  # each batch writes its own nodes of ``out``
+        i, j = todo[0][a:a + NODE_BATCH], todo[1][a:a + NODE_BATCH]
+        r0, e0 = R + hh[i, j], np.radians(ee[i, j])
+        e = e0[:, None, None] + offsets[None, :, None]  # (n, X, 1) elevation of each line at P
+        qx = s[None, None, :] * np.cos(e)  # toward the sun, in P's vertical plane
+        qz = r0[:, None, None] + s[None, None, :] * np.sin(e)
+        rq = np.hypot(qx, qz)
+        hq = rq - R
+        muq = (qx * np.cos(e0)[:, None, None] + qz * np.sin(e0)[:, None, None]) / rq  # Q's sun cosine
+        alive = (np.cumsum(hq < 0.0, axis=-1) == 0) & (hq <= top)  # up to the ground or the top
+        hq = np.clip(hq, 0.0, top)
+        t_q = np.exp(-(st.basis_depths(hq, muq, (true_medium,))[0] @ w_true))
+        t_q *= st.visible_fraction(hq, muq)[..., None]  # (n, X, S, P): the direct beam at Q
+        basis = stacked.basis_at(hq.ravel())  # (points, ranks of all)
+        coef = [(basis[:, a0:a1] @ w).reshape(hq.shape + (-1,)) for (a0, a1), w in zip(spans, coef_weights)]
+        ext_q = coef[0]
+        depth = np.concatenate([np.zeros(ext_q.shape[:2] + (1, pi.size)),
+                                np.cumsum(0.5 * (ext_q[:, :, 1:] + ext_q[:, :, :-1]) * ds[None, None, :, None],
+                                          axis=2)], axis=2)  # scaled depth from Q back to P
+        reach_q = t_q * np.exp(-depth) * alive[..., None]
+        d = np.zeros((i.size, pi.size))
+        for sig_q, (_, _, k) in zip(coef[1:], sig_peak):
+            f = sig_q * reach_q
+            line = (0.5 * (f[:, :, 1:] + f[:, :, :-1]) * ds[None, None, :, None]).sum(axis=2)  # (n, X, P)
+            d += np.einsum("nxp,xp->np", line, k) - line[:, i0]
+        out[i, j] = d / vis[i, j][:, None]
+
+    in_threads(batch, range(0, todo[0].size, NODE_BATCH), SOLVER_THREADS)
+    return probes, out
+
+
+def bent_beam_depth(sun_table, profile, medium, cutoff_deg: float, *, true_medium: int = 0,
+                    scaled_medium: int = 2):
+    """The optical-depth change tau_eff - tau* at the sun table's nodes: (probe wavelengths
+    (P,) in nm, (n_h, n_x, P)), 0 where no term applies. D (:func:`bent_minus_straight`) is
+    computed on the table's altitude nodes below :data:`MAX_ALTITUDE_M` and on
+    :func:`elevation_nodes`, read linearly in elevation at each table node, and added to
+    delta-M's beam: exp(-tau_eff) = exp(-tau*) + D, never below the direct beam exp(-tau).
+    ``medium`` is the profile's :class:`FactoredMedium` (cut at ``cutoff_deg``);
+    ``true_medium`` and ``scaled_medium`` the table's media holding its true and scaled
+    extinction on the profile's wavelengths."""
+    st = sun_table
+    n_h, n_x = st.h_nodes.size, st.x_nodes.size
+    rows = np.flatnonzero(st.h_nodes < MAX_ALTITUDE_M)
+    e_nodes = elevation_nodes()
+    # D on every ROW_STRIDE-th of those altitude nodes (and the last), linear in rho between them
+    coarse = np.unique(np.append(rows[::ROW_STRIDE], rows[-1]))
+    # computed at elevations above each altitude's own horizon, so that rows interpolate
+    # along the shadow's edge, where D changes by orders of magnitude
+    e_coarse = horizon_elevation_deg(st, st.h_nodes[coarse])[:, None] + e_nodes[None, :]
+    probes, d_coarse = bent_minus_straight(st, profile, medium, cutoff_deg, st.h_nodes[coarse], e_coarse,
+                                           true_medium=true_medium, scaled_medium=scaled_medium)
+    rho = st.rho_nodes
+    kc = np.clip(np.searchsorted(coarse, rows) - 1, 0, coarse.size - 2)
+    fc = ((rho[rows] - rho[coarse[kc]]) / (rho[coarse[kc + 1]] - rho[coarse[kc]]))[:, None, None]
+    d = d_coarse[kc] * (1.0 - fc) + d_coarse[kc + 1] * fc
+    corr = np.zeros((n_h, n_x, probes.size))
+    if not np.any(d):
+        return probes, corr
+    pi = probe_indices(profile.wavelengths_nm)
+    hh, xx = np.meshgrid(st.h_nodes[rows], st.x_nodes, indexing="ij")
+    mu = st._mu_from_x(hh, xx)
+    elev = np.degrees(np.arcsin(mu)) - horizon_elevation_deg(st, hh)  # above the local horizon
+    inside = (elev >= e_nodes[0]) & (elev <= e_nodes[-1])
+    k = np.clip(np.searchsorted(e_nodes, elev) - 1, 0, e_nodes.size - 2)
+    f = np.clip((elev - e_nodes[k]) / (e_nodes[k + 1] - e_nodes[k]), 0.0, 1.0)[..., None]
+    r = np.arange(rows.size)[:, None]
+    d_at = (d[r, k] * (1.0 - f) + d[r, k + 1] * f) * inside[..., None]  # (rows, n_x, P)
+    tau_true = st.basis_depths(hh, mu, (true_medium,))[0] @ st.weights[true_medium][:, pi]
+    k_s = st.base_ranks[scaled_medium]
+    tau_s = st.basis_depths(hh, mu, (scaled_medium,))[0][..., :k_s] @ st.weights[scaled_medium][:k_s, pi]
+    t_eff = np.maximum(np.exp(-tau_s) + d_at, np.exp(-tau_true))
+    corr[rows] = np.where(inside[..., None], -np.log(np.clip(t_eff, 1e-300, None)) - tau_s, 0.0)
+    return probes, corr
+
+
+def add_peak_paths(sun_table, profile, medium, cutoff_deg: float, solver_wavelengths_nm) -> None:
+    """Put the bent paths into the sun table's delta-M media (1: solver wavelengths, 2: the
+    profile's), as :meth:`SunTransmittance.add_depth_columns`."""
+    probes, corr = bent_beam_depth(sun_table, profile, medium, cutoff_deg)
+    if not np.any(corr):
+        return
+    sun_table.add_depth_columns(1, corr, hat_weights(probes, solver_wavelengths_nm))
+    sun_table.add_depth_columns(2, corr, hat_weights(probes, profile.wavelengths_nm))
