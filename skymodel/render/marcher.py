@@ -24,10 +24,10 @@ For a view ray from the observer O in direction v (looking along v) the radiance
   forward peaks, which delta-M leaves out of the solver, added per point of the ray in
   the small-angle approximation (:mod:`skymodel.render.aureole`,
   ``MarchSettings.peak_aureole``); it is counted in ``multiple``;
-* near a low sun the delta-M beam (T_sun with the scaled extinction, read by the solver and
-  the delta-M first scattering below) carries the cut peak's light along its own, bent
-  paths, not the straight sun path (:mod:`skymodel.render.peak_paths`,
-  ``MarchSettings.peak_paths``); the peak aureole keeps the straight path.
+* near a low sun the delta-M beam of the first scattering and the ground below (T_sun with
+  the scaled extinction) carries the cut peak's light along its own, bent paths, not the
+  straight sun path (:mod:`skymodel.render.peak_paths`, ``MarchSettings.peak_paths``); the
+  solver and the peak aureole keep the straight path.
 
 The components of :class:`SkyRadiance`: ``single`` is true single scattering (J_1 seen
 through the true extinction, full phase functions: exactly what an ``orders=1`` render
@@ -247,7 +247,7 @@ def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> 
                                  top, s.sun_table_altitudes, s.sun_table_x, s.sun_table_steps,
                                  earth_shadow=s.earth_shadow)
     if s.peak_paths:
-        add_peak_paths(sun_table, profile, medium, s.delta_m_cutoff_deg, wl_ms)
+        add_peak_paths(sun_table, profile, medium, s.delta_m_cutoff_deg)
     timings = {"tables_s": time.perf_counter() - t_start}
     t1 = time.perf_counter()
     ms_field: MultipleScatteringField = solve_multiple_scattering(

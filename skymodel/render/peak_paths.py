@@ -23,11 +23,15 @@ the elevation axis (:func:`skymodel.render.peak_diffuse.projected_kernel`; offse
 azimuth change a path's air little), sigma_peak the peak's share of aerosol scattering, T the
 true extinction (the direct beam up to Q), T* the scaled one (further turns in the peak go
 on forward). With x = 0 alone the integral is exp(-tau*) - exp(-tau) exactly: delta-M. The
-difference tau_eff - tau* is added to the table's delta-M media as extra columns, at a few
-probe wavelengths read linearly in wavelength (:meth:`SunTransmittance.add_depth_columns`),
-so the solver's first order, its spherical transport, the marcher's delta-M first
-scattering and the ground all see it. The peak aureole (:mod:`skymodel.render.aureole`)
-keeps the straight path: it is its own small-angle model of the same light seen near the sun.
+difference tau_eff - tau* is added to the marcher's delta-M medium of the table as extra
+columns, at probe wavelengths 50 nm apart at most, read linearly in wavelength
+(:meth:`SunTransmittance.add_depth_columns`): the marcher's delta-M first scattering and
+the directly lit ground see it. The solver keeps delta-M's beam: with the term in its first
+order too (and so in every higher one) the truth's statistics moved by at most 0.15 % (mean)
+and 0.35 % (worst; rural 0 and 5 degrees, desert 0 degrees), no closer to the Monte Carlo, at 28 % more
+solve time (the spherical transport reads the table's columns at every sample). The peak
+aureole (:mod:`skymodel.render.aureole`) keeps the straight path: it is its own small-angle
+model of the same light seen near the sun.
 
 Only nodes whose sun is within :data:`MAX_ELEVATION_DEG` of the local horizon and below
 :data:`MAX_ALTITUDE_M` get a term (elsewhere the lines differ little; measured in
@@ -61,15 +65,23 @@ LINE_STEPS = 64
 LINE_FIRST_M = 20.0
 #: Length of each line (metres): past it, a low line has left the atmosphere.
 LINE_LENGTH_M = 800e3
-#: Probe wavelengths: this many, evenly over the profile's range (the term is smooth in wavelength).
-N_PROBES = 5
+#: Probe wavelengths: evenly over the profile's range, at most this far apart (nm), read linearly
+#: between. The term is not linear in wavelength where tau* is large (Rayleigh's lambda^-4): over
+#: 380-780 nm (the default grid, rural AOD 0.2 and desert AOD 0.5 in June), against 41 probes, 5
+#: probes (100 nm) left the beam up to 1.4e-3 off (127 % of a beam of 1e-3), 9 probes (50 nm)
+#: 1.1e-4 (10 %), 13 probes 5e-5 (5 %).
+PROBE_STEP_NM = 50.0
 #: Nodes per batch (memory ~ batch x offsets x steps x ~80 bytes).
 NODE_BATCH = 64
 
 
-def probe_indices(wavelengths_nm, n: int = N_PROBES) -> np.ndarray:
-    """Indices of ``n`` wavelengths spread evenly over the grid (the ends included)."""
+def probe_indices(wavelengths_nm, n: int | None = None) -> np.ndarray:
+    """Indices of ``n`` wavelengths spread evenly over the grid (the ends included); by
+    default as many as keep them :data:`PROBE_STEP_NM` apart at most."""
     wl = np.asarray(wavelengths_nm, float)
+    if n is None:
+        n = int(np.ceil((wl.max() - wl.min()) / PROBE_STEP_NM - 1e-9)) + 1
+    n = int(n)
     targets = np.linspace(wl.min(), wl.max(), min(n, wl.size))
     return np.unique([int(np.argmin(np.abs(wl - t))) for t in targets])
 
@@ -107,12 +119,12 @@ def _kernels(profile, medium, probes, offsets_rad):
 
 
 
-def elevation_nodes(n: int = N_ELEVATIONS) -> np.ndarray:
+def elevation_nodes(n: int | None = None) -> np.ndarray:
     """Sun elevations above the local horizon (degrees) of the nodes the bent beam is
     computed on, from :data:`MIN_ABOVE_HORIZON_DEG` to :data:`MAX_ELEVATION_DEG`, crowded
     toward the horizon (the beam changes fastest there): evenly in asinh(e / 1 degree)."""
     lo, hi = np.arcsinh(MIN_ABOVE_HORIZON_DEG), np.arcsinh(MAX_ELEVATION_DEG)
-    return np.sinh(np.linspace(lo, hi, n))
+    return np.sinh(np.linspace(lo, hi, N_ELEVATIONS if n is None else int(n)))
 
 
 def horizon_elevation_deg(st, altitudes_m) -> np.ndarray:
@@ -235,11 +247,9 @@ def bent_beam_depth(sun_table, profile, medium, cutoff_deg: float, *, true_mediu
     return probes, corr
 
 
-def add_peak_paths(sun_table, profile, medium, cutoff_deg: float, solver_wavelengths_nm) -> None:
-    """Put the bent paths into the sun table's delta-M media (1: solver wavelengths, 2: the
-    profile's), as :meth:`SunTransmittance.add_depth_columns`."""
-    probes, corr = bent_beam_depth(sun_table, profile, medium, cutoff_deg)
-    if not np.any(corr):
-        return
-    sun_table.add_depth_columns(1, corr, hat_weights(probes, solver_wavelengths_nm))
-    sun_table.add_depth_columns(2, corr, hat_weights(probes, profile.wavelengths_nm))
+def add_peak_paths(sun_table, profile, medium, cutoff_deg: float, which: int = 2) -> None:
+    """Put the bent paths into the sun table's delta-M medium ``which`` (the marcher's: the
+    profile's wavelengths), as :meth:`SunTransmittance.add_depth_columns`."""
+    probes, corr = bent_beam_depth(sun_table, profile, medium, cutoff_deg, scaled_medium=which)
+    if np.any(corr):
+        sun_table.add_depth_columns(which, corr, hat_weights(probes, profile.wavelengths_nm))
