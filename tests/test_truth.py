@@ -118,6 +118,8 @@ def test_committed_truth_runs_are_read_when_the_cache_has_none(tmp_path):
                 assert np.max(z["se"] / z["mean"]) <= 0.0065, f
             if "_5_" in f:  # topped up to 0.52 % (2026-11-27)
                 assert np.max(z["se"] / z["mean"]) <= 0.0055, f
+            if "_0_" in f:  # sun 0: 375 000 - 1 500 000 paths, above the rule (docs/accuracy.md)
+                assert np.max(z["se"] / z["mean"]) <= 0.01, f
             if "rural_-4_" in f:  # topped up to the rule (0.5 % per direction)
                 assert np.max(z["se"] / z["mean"]) <= 0.005, f
     spec = importlib.util.spec_from_file_location("bench_truth", os.path.join(root, "bench_truth.py"))
