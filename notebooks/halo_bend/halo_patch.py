@@ -11,20 +11,12 @@ from skymodel.render.peak_diffuse import peak_of, projected_kernel
 from skymodel.render import marcher as _marcher
 from skymodel.render.marcher import solver_wavelengths
 
-import os
-import threading
-STATE = {"aureole_straight": os.environ.get("HALO_AUREOLE_STRAIGHT", "1") == "1"}
-_LOCAL = threading.local()
+STATE = {}
 PROBES_NM = (440.0, 500.0, 550.0, 600.0, 660.0)
 MAX_ELEV_DEG = 25.0
 MAX_H_M = 15000.0
 X_STEP_DEG = 0.5
 N_S = 160
-
-
-class _Shim:
-    def __init__(self, basis, weights):
-        self.basis, self.weights, self.rank = basis, weights, weights.shape[0]
 
 
 def _hat(src, dst):
@@ -58,16 +50,16 @@ def halo_depth_correction(st, profile, cutoff_deg):
     mask = (hh < MAX_H_M) & (e < MAX_ELEV_DEG) & (e > -3.0)
     corr = np.zeros(hh.shape + (probes.size,))
     s = np.concatenate([[0.0], np.geomspace(20.0, 800e3, N_S - 1)])
-    w0 = st.media[0].weights[:, pi]
+    w0 = st.weights[0][:, pi]
     w1 = None
     for (i, j) in zip(*np.nonzero(mask)):
         h0, es = hh[i, j], e[i, j]
         r0 = R + h0
-        tau0 = st._basis_depths(np.array([h0]), np.array([mu[i, j]]), (0,))[0] @ w0
+        tau0 = st.basis_depths(np.array([h0]), np.array([mu[i, j]]), (0,))[0] @ w0
         vis = st.visible_fraction(np.array([h0]), np.array([mu[i, j]]))[0]
         if vis < 1e-6:
             continue
-        taus = st._basis_depths(np.array([h0]), np.array([mu[i, j]]), (2,))[0] @ st.media[2].weights[:, pi]
+        taus = st.basis_depths(np.array([h0]), np.array([mu[i, j]]), (2,))[0] @ st.weights[2][:, pi]
         ee = np.radians(es + xs_deg)[:, None]  # (n_x, 1)
         qx = s[None, :] * np.cos(ee)
         qz = r0 + s[None, :] * np.sin(ee)
@@ -79,7 +71,7 @@ def halo_depth_correction(st, profile, cutoff_deg):
         alive = np.cumsum(below, axis=1) == 0
         inside = alive & (hq <= st.top)
         hqc = np.clip(hq, 0, st.top)
-        tq = np.exp(-(st._basis_depths(hqc, muq, (0,))[0] @ w0)) * st.visible_fraction(hqc, muq)[..., None]
+        tq = np.exp(-(st.basis_depths(hqc, muq, (0,))[0] @ w0)) * st.visible_fraction(hqc, muq)[..., None]
         exs = med.extinction_scaled.at(hqc.ravel())[:, pi].reshape(hq.shape + (-1,))
         cum = np.concatenate([np.zeros((xs_deg.size, 1, exs.shape[-1])),
                               np.cumsum(0.5 * (exs[:, 1:] + exs[:, :-1]) * np.diff(s)[None, :, None], axis=1)], axis=1)
@@ -95,6 +87,10 @@ def halo_depth_correction(st, profile, cutoff_deg):
 
 
 def patched_factory(orig):
+    """The sun table with the prototype's columns in both delta-M media (the solver's and the
+    marcher's); the marcher reads the peak aureole's beam without them (``straight=``), as the
+    renderer's own version does (before it, this prototype kept a copy of the medium for that:
+    HALO_AUREOLE_STRAIGHT=0 gave the aureole the corrected beam)."""
     def make(media, R, top, *a, **k):
         st = orig(media, R, top, *a, **k)
         prof = STATE["profile"]
@@ -102,36 +98,14 @@ def patched_factory(orig):
         STATE["corr"] = (probes, corr, st.h_nodes, st.x_nodes)
         wl_full = np.asarray(prof.wavelengths_nm, float)
         wl_ms = solver_wavelengths(wl_full, STATE["ms_step"])
-        st.media.append(st.media[2])  # 3: delta-M's straight path, for the peak aureole
-        st.tables.append(st.tables[2])
         for w, wl in ((1, wl_ms), (2, wl_full)):
-            m = st.media[w]
-            st.tables[w] = np.concatenate([st.tables[w], corr], axis=-1)
-            st.media[w] = _Shim(None, np.vstack([m.weights, _hat(probes, wl)]))
-        if STATE.get("aureole_straight", True):
-            orig_tr = st.transmittances
-
-            def tr(h, mus, which=(0,), dtype=np.float64):
-                res = orig_tr(h, mus, which, dtype)
-                if tuple(which) == (0, 2):
-                    _LOCAL.straight = orig_tr(h, mus, (3,), dtype)[0]
-                return res
-            st.transmittances = tr
+            st.add_depth_columns(w, corr, _hat(probes, wl))
         return st
     return make
-
-
-def _aureole_gather_straight(orig):
-    def gather(self, cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s):
-        if STATE.get("aureole_straight", True):
-            t_sun_s = _LOCAL.straight
-        return orig(self, cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s)
-    return gather
 
 
 def install(profile, settings):
     STATE.update(profile=profile, cutoff=settings.delta_m_cutoff_deg, ms_step=settings.ms_wavelength_step_nm)
     if not getattr(_marcher, "_halo_patched", False):
         _marcher.SunTransmittance = patched_factory(_marcher.SunTransmittance)
-        _marcher.SkyMarcher._aureole_gather = _aureole_gather_straight(_marcher.SkyMarcher._aureole_gather)
         _marcher._halo_patched = True

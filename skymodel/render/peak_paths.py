@@ -28,8 +28,8 @@ columns, at probe wavelengths 50 nm apart at most, read linearly in wavelength
 (:meth:`SunTransmittance.add_depth_columns`): the marcher's delta-M first scattering and
 the directly lit ground see it. The solver keeps delta-M's beam: with the term in its first
 order too (and so in every higher one) the truth's statistics moved by at most 0.15 % (mean)
-and 0.35 % (worst; rural 0 and 5 degrees, desert 0 degrees), no closer to the Monte Carlo, at 28 % more
-solve time (the spherical transport reads the table's columns at every sample). The peak
+and 0.35 % (worst; rural 0 and 5 degrees, desert 0 degrees), no closer to the Monte Carlo,
+at 28 % more solve time (the spherical transport reads the table's columns at every sample). The peak
 aureole (:mod:`skymodel.render.aureole`) keeps the straight path: it is its own small-angle
 model of the same light seen near the sun.
 
@@ -103,20 +103,20 @@ def hat_weights(probes_nm, wavelengths_nm) -> np.ndarray:
     return w
 
 
-def _kernels(profile, medium, probes, offsets_rad):
-    """Per aerosol regime with a cut peak: (regime, k (n_offsets, P) normalised to sum 1)."""
+def _kernels(profile, medium, probe_idx, offsets_rad):
+    """Per aerosol regime with a cut peak: (regime, k (n_offsets, P) normalised to sum 1) at
+    the wavelengths ``probe_idx`` of the profile."""
     peaks = peak_of(profile, medium)
     out = []
     for r in range(len(medium.aerosol)):
-        if not np.any(medium.forward_fraction[r, probes] > 0):
+        if not np.any(medium.forward_fraction[r, probe_idx] > 0):
             continue
-        x, k = projected_kernel(profile.aerosol_phase_angles_deg, peaks[r][:, probes])
-        kk = np.stack([np.interp(offsets_rad, x, k[:, p], left=0.0, right=0.0) for p in range(probes.size)], axis=1)
+        x, k = projected_kernel(profile.aerosol_phase_angles_deg, peaks[r][:, probe_idx])
+        kk = np.stack([np.interp(offsets_rad, x, k[:, p], left=0.0, right=0.0) for p in range(probe_idx.size)],
+                      axis=1)
         total = kk.sum(axis=0)
         out.append((r, kk / np.where(total > 0, total, 1.0)))
     return out
-
-
 
 
 def elevation_nodes(n: int | None = None) -> np.ndarray:
@@ -136,8 +136,8 @@ def horizon_elevation_deg(st, altitudes_m) -> np.ndarray:
 def bent_minus_straight(sun_table, profile, medium, cutoff_deg: float, altitudes_m, elevations_deg, *,
                         true_medium: int = 0, scaled_medium: int = 2):
     """D = B_bent - B_straight at points of ``altitudes_m`` (n_h,) and ``elevations_deg``
-    (n_h, n_e; local sun elevation, degrees): (probe wavelengths (P,) nm, D (n_h, n_e, P)), per unit solar
-    irradiance. B is the peak light of the module docstring's integral, B_straight its x = 0
+    (n_h, n_e; local sun elevation, degrees): (probe wavelengths (P,) nm, D (n_h, n_e, P)),
+    per unit solar irradiance. B is the peak light of the module docstring's integral, B_straight its x = 0
     line alone (exactly exp(-tau*) - exp(-tau), delta-M's share), both from the same
     quadrature so that its error cancels where the two differ little."""
     st = sun_table
@@ -171,6 +171,7 @@ def bent_minus_straight(sun_table, profile, medium, cutoff_deg: float, altitudes
     ds = np.diff(s)
     i0 = n_half  # the x = 0 line
     R, top = st.R, st.top
+
     def batch(a):  # each batch writes its own nodes of ``out``
         i, j = todo[0][a:a + NODE_BATCH], todo[1][a:a + NODE_BATCH]
         r0, e0 = R + hh[i, j], np.radians(ee[i, j])
