@@ -6,6 +6,7 @@ reaches P from elevation e_sun + x (x over the peak projected on the elevation a
 seen from Q's sun through the true extinction and from Q to P through the scaled one.
 Delta-M's own value (the straight line, x = 0) is exp(-tau*) exactly."""
 import numpy as np
+from skymodel.numerics import linear_interp_matrix
 from skymodel.render.medium import factor_medium
 from skymodel.render.peak_diffuse import peak_of, projected_kernel
 from skymodel.render import marcher as _marcher
@@ -17,16 +18,6 @@ MAX_ELEV_DEG = 25.0
 MAX_H_M = 15000.0
 X_STEP_DEG = 0.5
 N_S = 160
-
-
-def _hat(src, dst):
-    src = np.asarray(src, float); dst = np.asarray(dst, float)
-    w = np.zeros((src.size, dst.size))
-    for j, l in enumerate(dst):
-        i = int(np.clip(np.searchsorted(src, l) - 1, 0, src.size - 2))
-        f = np.clip((l - src[i]) / (src[i + 1] - src[i]), 0, 1)
-        w[i, j] += 1 - f; w[i + 1, j] += f
-    return w
 
 
 def halo_depth_correction(st, profile, cutoff_deg):
@@ -99,7 +90,7 @@ def patched_factory(orig):
         wl_full = np.asarray(prof.wavelengths_nm, float)
         wl_ms = solver_wavelengths(wl_full, STATE["ms_step"])
         for w, wl in ((1, wl_ms), (2, wl_full)):
-            st.add_depth_columns(w, corr, _hat(probes, wl))
+            st.add_depth_columns(w, corr, linear_interp_matrix(probes, wl))
         return st
     return make
 

@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from skymodel.numerics import linear_interp_matrix
 from skymodel.render.medium import LowRank
 from skymodel.render.peak_diffuse import peak_of, projected_kernel
 from skymodel.render.threads import SOLVER_THREADS, in_threads
@@ -84,23 +85,6 @@ def probe_indices(wavelengths_nm, n: int | None = None) -> np.ndarray:
     n = int(n)
     targets = np.linspace(wl.min(), wl.max(), min(n, wl.size))
     return np.unique([int(np.argmin(np.abs(wl - t))) for t in targets])
-
-
-def hat_weights(probes_nm, wavelengths_nm) -> np.ndarray:
-    """(P, n_wl): linear interpolation from the probe wavelengths to ``wavelengths_nm``
-    (flat beyond the ends)."""
-    src = np.asarray(probes_nm, float)
-    dst = np.asarray(wavelengths_nm, float)
-    w = np.zeros((src.size, dst.size))
-    if src.size == 1:
-        w[0] = 1.0
-        return w
-    i = np.clip(np.searchsorted(src, dst) - 1, 0, src.size - 2)
-    f = np.clip((dst - src[i]) / (src[i + 1] - src[i]), 0.0, 1.0)
-    cols = np.arange(dst.size)
-    np.add.at(w, (i, cols), 1.0 - f)
-    np.add.at(w, (i + 1, cols), f)
-    return w
 
 
 def _kernels(profile, medium, probe_idx, offsets_rad):
@@ -253,4 +237,4 @@ def add_peak_paths(sun_table, profile, medium, cutoff_deg: float, which: int = 2
     profile's wavelengths), as :meth:`SunTransmittance.add_depth_columns`."""
     probes, corr = bent_beam_depth(sun_table, profile, medium, cutoff_deg, scaled_medium=which)
     if np.any(corr):
-        sun_table.add_depth_columns(which, corr, hat_weights(probes, profile.wavelengths_nm))
+        sun_table.add_depth_columns(which, corr, linear_interp_matrix(probes, profile.wavelengths_nm))
