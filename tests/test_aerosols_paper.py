@@ -197,13 +197,17 @@ def test_paper_lookup_reproduces():
 def test_three_mode_cross_section_against_miepython():
     miepython = pytest.importorskip("miepython")
     # rural water-soluble at 540 nm: the number-weighted sum of Jaenicke's three rural modes,
-    # integrated independently (even ln r grid, miepython's m = n - ik)
+    # integrated independently (even ln r grid, miepython's m = n - ik). The grid ends 7 ln(sigma)
+    # above each mode radius: the cross section's weight (r^2 dn) peaks 2 ln(sigma) above it, so
+    # the cut leaves out < 1e-5 of it, and the coarse mode's largest spheres (x 3e4 at 9 ln(sigma))
+    # cost 95 % of miepython's time (8000 points to 9 ln(sigma): 78 s, ratio - 1 = 3.2e-6; 4000 to
+    # 7: 4.6 s, 4.5e-6)
     entry = mie_lookup.paper_entries()["rural:water_soluble"]
     m = mie_lookup.refractive_index_file("water_soluble.csv", [540.0])[0]
     n_tot = sum(n for n, _, _ in entry["modes"])
     c_ext = 0.0
     for n, r_mod, sigma in entry["modes"]:
-        u = np.linspace(np.log(r_mod) - 6 * np.log(sigma), np.log(r_mod) + 9 * np.log(sigma), 8000)
+        u = np.linspace(np.log(r_mod) - 6 * np.log(sigma), np.log(r_mod) + 7 * np.log(sigma), 4000)
         r = np.exp(u)
         qext = miepython.efficiencies_mx(np.conj(m), 2 * np.pi * r / 0.54)[0]
         dn = aerosols.lognormal_number_distribution(r, n / n_tot, r_mod, sigma)
