@@ -65,7 +65,7 @@ from skymodel.numerics import linear_interp_matrix
 from skymodel.render.medium import FactoredMedium, LowRank, march_samples, step_transmittance
 from skymodel.render.peak_diffuse import PeakDiffuse
 from skymodel.render.rays import altitude_along, atmosphere_segment
-from skymodel.render.sun_transmittance import SUN_ANGULAR_RADIUS_RAD, SunTransmittance
+from skymodel.render.sun_transmittance import SUN_ANGULAR_RADIUS_RAD, SunTransmittance, horizon_mu
 from skymodel.render.threads import SOLVER_THREADS, chunks_in_threads
 
 
@@ -1038,7 +1038,7 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
     ih, fh = st.altitude_weights(hc)
     fh = fh.astype(f32)
     rs = R + hc
-    mu_hor = -np.sqrt(np.clip(1.0 - (R / rs) ** 2, 0.0, 1.0))  # cosine of the local horizon
+    mu_hor = horizon_mu(R, rs)  # cosine of the local horizon
     alpha = SUN_ANGULAR_RADIUS_RAD
     e_hor = np.arcsin(np.clip(mu_hor, -1.0, 1.0))
     mu_lo, mu_hi = np.sin(e_hor - alpha), np.sin(e_hor + alpha)  # edges of the setting disc

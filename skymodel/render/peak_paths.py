@@ -52,6 +52,7 @@ import numpy as np
 from skymodel.numerics import linear_interp_matrix
 from skymodel.render.medium import LowRank
 from skymodel.render.peak_diffuse import peak_of, projected_kernel
+from skymodel.render.sun_transmittance import horizon_mu
 from skymodel.render.threads import SOLVER_THREADS, in_threads
 
 #: Nodes whose sun stands higher than this above the local horizon (degrees) keep delta-M's beam.
@@ -119,8 +120,7 @@ def elevation_nodes(n: int | None = None) -> np.ndarray:
 
 def horizon_elevation_deg(st, altitudes_m) -> np.ndarray:
     """Elevation (degrees) of the local horizon seen from ``altitudes_m`` (<= 0)."""
-    r = st.R + np.maximum(np.asarray(altitudes_m, float), 0.0)
-    return -np.degrees(np.arccos(np.clip(st.R / r, -1.0, 1.0)))
+    return np.degrees(np.arcsin(horizon_mu(st.R, st.R + np.maximum(np.asarray(altitudes_m, float), 0.0))))
 
 
 def bent_minus_straight(sun_table, profile, medium, cutoff_deg: float, altitudes_m, elevations_deg, *,

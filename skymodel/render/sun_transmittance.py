@@ -49,6 +49,12 @@ from skymodel.render.threads import SOLVER_THREADS, in_threads
 #: Angular radius of the sun at 1 AU, radians (IAU nominal radius 695,700 km).
 SUN_ANGULAR_RADIUS_RAD = np.arcsin(695_700.0 / 149_597_870.7)
 
+
+def horizon_mu(planet_radius_m: float, r_m) -> np.ndarray:
+    """Sine of the local horizon's elevation (the cosine, from the zenith, of the grazing
+    direction) seen from radius ``r_m`` (metres from the planet's centre; r <= R gives 0)."""
+    return -np.sqrt(np.clip(1.0 - (planet_radius_m / r_m) ** 2, 0.0, 1.0))
+
 #: Altitude rows of the table integrated at a time (on :data:`SOLVER_THREADS` threads):
 #: whole, the samples' basis values were ~0.35 GB at ``final`` and their allocation,
 #: not the arithmetic, took most of the table's time.
@@ -157,7 +163,7 @@ class SunTransmittance:
         if not self.earth_shadow:
             return np.ones(np.broadcast_shapes(np.shape(altitudes_m), np.shape(mu_sun)))
         r = self.R + np.maximum(np.asarray(altitudes_m, dtype=float), 0.0)
-        sin_horizon = -np.sqrt(np.clip(1.0 - (self.R / r) ** 2, 0.0, 1.0))  # mu of the horizon
+        sin_horizon = horizon_mu(self.R, r)
         e = np.arcsin(np.clip(mu_sun, -1.0, 1.0)) - np.arcsin(sin_horizon)
         c = np.clip(e / SUN_ANGULAR_RADIUS_RAD, -1.0, 1.0)
         return 0.5 + (c * np.sqrt(1.0 - c * c) + np.arcsin(c)) / np.pi
@@ -174,7 +180,7 @@ class SunTransmittance:
         (…, rank), interpolated at the points (one lookup for all the media)."""
         h = np.clip(np.asarray(altitudes_m, dtype=float), self.h_nodes[0], self.h_nodes[-1])
         r = self.R + h
-        mu_h = -np.sqrt(np.clip(1.0 - (self.R / r) ** 2, 0.0, 1.0))
+        mu_h = horizon_mu(self.R, r)
         mu = np.maximum(np.asarray(mu_sun, dtype=float), mu_h)
         x = self._x_from_mu(r, mu)
         i, fi = self.altitude_weights(h)
