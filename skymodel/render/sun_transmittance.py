@@ -55,6 +55,7 @@ def horizon_mu(planet_radius_m: float, r_m) -> np.ndarray:
     direction) seen from radius ``r_m`` (metres from the planet's centre; r <= R gives 0)."""
     return -np.sqrt(np.clip(1.0 - (planet_radius_m / r_m) ** 2, 0.0, 1.0))
 
+
 #: Altitude rows of the table integrated at a time (on :data:`SOLVER_THREADS` threads):
 #: whole, the samples' basis values were ~0.35 GB at ``final`` and their allocation,
 #: not the arithmetic, took most of the table's time.
@@ -104,7 +105,8 @@ class SunTransmittance:
 
         in_threads(rows, range(0, n_altitudes, _TABLE_ROWS), SOLVER_THREADS)
         splits = np.cumsum([m.rank for m in self.media])[:-1]
-        self.tables = np.split(table, splits, axis=-1)
+        # each its own contiguous array: basis_depths gathers rows of table.reshape(-1, rank)
+        self.tables = [np.ascontiguousarray(t) for t in np.split(table, splits, axis=-1)]
         # each medium's weights (rank, n_wl); add_depth_columns appends rows (and table columns)
         self.weights = [m.weights for m in self.media]
         self.base_ranks = [m.rank for m in self.media]
