@@ -40,9 +40,9 @@ reaches the shadow is left out).
 
 The lines are evaluated in float32, only on their points up to the ground or the top and only
 the lines the kernels weigh (against float64 on every point: tau_eff - tau* moved by at most
-2e-5; with :meth:`SunTransmittance.basis_depths` gathering by flat index, the term's time per
-``final`` table 0.61 -> 0.46 s and per ``preview`` table 0.44 -> 0.36 s on two threads: docs/benchmarks.md,
-"The peak paths").
+2e-5). With :meth:`SunTransmittance.basis_depths` gathering by flat index, the term's time per
+solve (on - off, two threads) went from 0.70/0.60 to 0.40/0.38 s at ``final`` and from 0.57/0.51
+to 0.35/0.32 s at ``preview`` (docs/benchmarks.md, "The peak paths").
 """
 
 from __future__ import annotations
