@@ -81,12 +81,6 @@ LINE_LENGTH_M = 800e3
 PROBE_STEP_NM = 50.0
 #: Nodes per batch (memory ~ batch x offsets x steps x ~80 bytes).
 NODE_BATCH = 64
-#: Turns in the peak counted on each bent line (1: the light turned once, at Q; more: the light
-#: turned again on its way to P, Poisson in the peak optical depth from Q to P, its offset the
-#: sum of the turns, all taken at Q). A study knob (notebooks/peak_multi).
-MAX_TURNS = 1
-#: Offsets (degrees) the lines reach when MAX_TURNS > 1 (the turns' sum spreads beyond the cone).
-MULTI_TURN_REACH_DEG = 30.0
 
 
 def probe_indices(wavelengths_nm, n: int | None = None) -> np.ndarray:
@@ -143,9 +137,7 @@ def bent_minus_straight(sun_table, profile, medium, cutoff_deg: float, altitudes
     hh = np.broadcast_to(np.asarray(altitudes_m, float)[:, None], np.shape(elevations_deg))
     ee = np.asarray(elevations_deg, float)
     out = np.zeros(hh.shape + (pi.size,))
-    turns = max(1, int(MAX_TURNS))
-    reach = max(float(cutoff_deg), MULTI_TURN_REACH_DEG if turns > 1 else 0.0)
-    n_half = int(np.ceil(reach / OFFSET_STEP_DEG)) + 1
+    n_half = int(np.ceil(float(cutoff_deg) / OFFSET_STEP_DEG)) + 1
     offsets = np.radians(np.arange(-n_half, n_half + 1) * OFFSET_STEP_DEG)  # 0 among them
     kernels = _kernels(profile, medium, pi, offsets)
     mu = np.sin(np.radians(ee))
@@ -153,18 +145,10 @@ def bent_minus_straight(sun_table, profile, medium, cutoff_deg: float, altitudes
     todo = np.nonzero(vis > 1e-6)
     if not kernels or todo[0].size == 0:
         return probes, out
-    # each regime's kernel of 1..turns turns (n-fold convolutions on the offset grid): (turns, X, P)
-    powers = []
-    for _, k in kernels:
-        pw = [k]
-        for _ in range(turns - 1):
-            pw.append(np.stack([np.convolve(pw[-1][:, p], k[:, p], mode="same") for p in range(k.shape[1])], axis=1))
-        powers.append(np.stack(pw))
     # only the lines some kernel weighs, and the x = 0 line (the kernels end inside the cone)
-    used = np.flatnonzero((sum(kp.sum(axis=(0, 2)) for kp in powers) > 0) | (np.arange(offsets.size) == n_half))
+    used = np.flatnonzero((sum(k.sum(axis=1) for _, k in kernels) > 0) | (np.arange(offsets.size) == n_half))
     offsets = offsets[used]
     kernels = [(r, k[used].astype(np.float32)) for r, k in kernels]
-    powers = [kp[:, used].astype(np.float32) for kp in powers]
     i0 = int(np.flatnonzero(used == n_half)[0])  # the x = 0 line
     w_true = st.weights[true_medium][:, pi].astype(np.float32)
     ext_s = (medium.extinction_scaled, medium.extinction_scaled.weights[:, pi])
@@ -214,23 +198,8 @@ def bent_minus_straight(sun_table, profile, medium, cutoff_deg: float, altitudes
         reach_q = np.zeros(full, np.float32)
         reach_q[ia] = t_a * depth[ia]
         d = np.zeros((i.size, pi.size))
-        if turns > 1:  # the peak optical depth from P out to each Q, and the Poisson weights of more turns
-            tau_p = np.zeros(full, np.float32)
-            tot = sum(coef[1:])
-            np.cumsum((tot[:, :, 1:] + tot[:, :, :-1]) * half_ds, axis=2, out=tau_p[:, :, 1:])
-            w = [np.exp(-tau_p)]
-            for n in range(1, turns - 1):
-                w.append(w[-1] * tau_p / n)
-            w.append(np.maximum(1.0 - sum(w), 0.0))
-        for r_i, (sig_q, (_, _, k)) in enumerate(zip(coef[1:], sig_peak)):
+        for sig_q, (_, _, k) in zip(coef[1:], sig_peak):
             sig_q *= reach_q
-            if turns > 1:
-                f = sig_q * sum(wn * kp[None, :, None, :] for wn, kp in zip(w, powers[r_i]))
-                line = np.einsum("nxsp,xsp->nxp", f[:, :, 1:] + f[:, :, :-1],
-                                 np.broadcast_to(half_ds[0], (f.shape[1],) + half_ds.shape[2:]))
-                straight = np.einsum("nsp,sp->np", sig_q[:, i0, 1:] + sig_q[:, i0, :-1], half_ds[0, 0])
-                d += line.sum(axis=1) - straight
-                continue
             line = np.einsum("nxsp,xsp->nxp", sig_q[:, :, 1:] + sig_q[:, :, :-1],
                              np.broadcast_to(half_ds[0], (sig_q.shape[1],) + half_ds.shape[2:]))
             d += np.einsum("nxp,xp->np", line, k) - line[:, i0]
