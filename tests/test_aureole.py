@@ -112,4 +112,6 @@ def test_sunward_horizon_at_sunset_needs_a_narrow_cone():
     narrow = SkyMarcher(prof, 0.0, 180.0, 0.0,
                         replace(base, table_mu=48, table_phi=32, delta_m_cutoff_deg=3.0)).radiance(d).radiance
     assert np.all(np.abs(narrow - mc.radiance) < 4 * mc.stderr + 0.02 * mc.radiance)
-    assert narrow[0, 0] > 1.06 * wide[0, 0]  # 2 degrees from the sun: the wide cone is well below
+    # 2 degrees from the sun the wide cone is well below: 5.7 % under the narrow one (MC: wide -5.7 %,
+    # narrow -0.4 %; before the field's azimuth edges, multiple_scattering, -7.2 % and -1.5 %)
+    assert narrow[0, 0] > 1.04 * wide[0, 0]

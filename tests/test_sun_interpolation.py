@@ -75,7 +75,7 @@ def test_field_read_in_blocks_is_the_same(monkeypatch):
     tab = field._interp_table()
     assert field.h_scale is not None and not np.shares_memory(field.source, tab)
     src = np.moveaxis(field.source, 0, -1)
-    np.testing.assert_allclose(tab[1:-1, ..., 0, :] * field.h_scale[None, None, :, None, :].astype(np.float32), src,
+    np.testing.assert_allclose(tab[1:-1, 1:-1, ..., 0, :] * field.h_scale[None, None, :, None, :].astype(np.float32), src,
                                rtol=1e-6, atol=0)
     # at a node the point reads the node's J
     h, mu, phi, mus = field.h_nodes[3], field.mu_nodes[2], field.phi_nodes[1], field.mus_nodes[5]
@@ -87,11 +87,13 @@ def test_field_read_in_blocks_is_the_same(monkeypatch):
     src = np.moveaxis(field.source / field.h_scale.T[:, None, None, :, None].astype(np.float32), 0, -1)
     # the table is float32 (the solver's precision): slopes computed in float64, then rounded
     assert tab.dtype == np.float32
-    np.testing.assert_allclose(tab[1:-1, ..., 1, :], msm._log_slopes(field.mus_nodes, src.astype(float), axis=3),
+    np.testing.assert_allclose(tab[1:-1, 1:-1, ..., 1, :], msm._log_slopes(field.mus_nodes, src.astype(float), axis=3),
                                rtol=1e-6, atol=0)
     # the pole rows (mu = -1, +1): the azimuthal mean of the nearest ring, the same at every azimuth
-    np.testing.assert_allclose(tab[0, ..., 0, :], np.broadcast_to(src[0].mean(axis=0), src[0].shape), rtol=1e-6)
-    np.testing.assert_allclose(tab[-1, ..., 0, :], np.broadcast_to(src[-1].mean(axis=0), src[-1].shape), rtol=1e-6)
+    # (the azimuth edge columns, phi = 0 and pi, included: tests/test_azimuth_edges.py)
+    ring = (src.shape[1] + 2,) + src[0].shape[1:]
+    np.testing.assert_allclose(tab[0, ..., 0, :], np.broadcast_to(src[0].mean(axis=0), ring), rtol=1e-6)
+    np.testing.assert_allclose(tab[-1, ..., 0, :], np.broadcast_to(src[-1].mean(axis=0), ring), rtol=1e-6)
     # a scalar point gives (n_wl,)
     assert field.source_at(1000.0, 0.5, 1.0, 0.2).shape == (2,)
 
@@ -110,7 +112,7 @@ def test_threads_reading_a_fresh_field_build_its_table_once(monkeypatch):
     field = SkyMarcher(prof, 10.0, 180.0, 0.0, small).field
     pts = (np.linspace(0, 30e3, 50), np.linspace(-1, 1, 50), np.linspace(0, np.pi, 50), np.full(50, 0.3))
     expected = field.source_at(*pts)
-    for name in ("_table_poles", "_mu_poles"):
+    for name in ("_table_edges", "_mu_poles", "_phi_edges"):
         field.__dict__.pop(name, None)
     slopes, builds = msm._log_slopes, []
     build = msm.MultipleScatteringField._build_interp_table

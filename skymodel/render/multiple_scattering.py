@@ -187,13 +187,13 @@ class MultipleScatteringField:
 
     def _source_block(self, h, mu, phi, mu_s) -> np.ndarray:
         """:meth:`source_at` for 1-D arrays of points -> (points, n_wl)."""
-        tab = self._interp_table()  # (n_mu + 2, n_phi, n_h, n_mus, 2, n_wl): log-slope beside J
+        tab = self._interp_table()  # (n_mu + 2, n_phi + 2, n_h, n_mus, 2, n_wl): log-slope beside J
         ih, fh = _axis(self.h_nodes, h)
         im, fm = _axis(self._mu_poles, mu)
-        ip, fp = _axis(self.phi_nodes, phi)
+        ip, fp = _axis(self._phi_edges, phi)
         isn, fs = _axis(self.mus_nodes, mu_s)
         fm, fp, fh, fs = (f.astype(tab.dtype) for f in (fm, fp, fh, fs))
-        n_phi, n_h, n_mus = self.phi_nodes.size, self.h_nodes.size, self.mus_nodes.size
+        n_phi, n_h, n_mus = self._phi_edges.size, self.h_nodes.size, self.mus_nodes.size
         # the 8 corners of the (mu, phi, h) cell at sun nodes isn and isn + 1: one gather of
         # 16 table rows per point, then the weighted sum over the corners
         base = ((im * n_phi + ip) * n_h + ih) * n_mus + isn
@@ -217,41 +217,60 @@ class MultipleScatteringField:
         nearest its own, 5.9 degrees toward or away from the sun, instead of the
         azimuthal mean that a direction at the pole has. Linear interpolation between
         the ring and the pole removes that bias (issue 23: rural AOD 0.2, sun 20
-        degrees, the zenith was +2.2 % above the Monte Carlo tracer at ``final``)."""
-        tab = getattr(self, "_table_poles", None)
+        degrees, the zenith was +2.2 % above the Monte Carlo tracer at ``final``).
+
+        Likewise an *edge* column at phi = 0 and at phi = pi (``_phi_edges``): the azimuth
+        nodes are midpoints, (k + 1/2) pi / n_phi, so the principal plane itself lies outside
+        them and was read at the nearest node, flat in phi. J is even in phi about both
+        edges; the edge holds the even quadratic in log J through the two nearest nodes,
+        J_1 (J_1 / J_2)^(1/8) (the log-slope extrapolated the same way), and phi is read
+        linearly between it and the first node. (Measured against the Monte Carlo truth:
+        docs/accuracy.md, "Twilight toward the sun".)"""
+        tab = getattr(self, "_table_edges", None)
         if tab is not None:
             return tab
         with _TABLE_LOCK:  # the marcher's threads ask at once: one builds, the others wait for it
-            if getattr(self, "_table_poles", None) is None:
+            if getattr(self, "_table_edges", None) is None:
                 self._build_interp_table()
-        return self._table_poles
+        return self._table_edges
 
     def _build_interp_table(self) -> None:
-        """Fill ``_mu_poles`` and then ``_table_poles`` (:meth:`_interp_table`); the table is
-        published last, so a reader that sees it also sees its nodes."""
+        """Fill ``_mu_poles``, ``_phi_edges`` and then ``_table_edges`` (:meth:`_interp_table`);
+        the table is published last, so a reader that sees it also sees its nodes."""
         src = np.moveaxis(self.source, 0, -1)  # (n_mu, n_phi, n_h, n_mus, n_wl)
         if self.scattering is not None:  # J / sigma_s, read linearly in altitude (:meth:`source_at`)
             src = src / _safe(self.h_scale).astype(np.float32)[None, None, :, None, :]
-        n_mu = src.shape[0]
-        tab = np.empty((n_mu + 2,) + src.shape[1:-1] + (2, src.shape[-1]), dtype=np.float32)
+        n_mu, n_phi = src.shape[:2]
+        tab = np.empty((n_mu + 2, n_phi + 2) + src.shape[2:-1] + (2, src.shape[-1]), dtype=np.float32)
         # one zenith node at a time, so the slopes' temporaries stay small; the table
         # then holds the only copy of J (``source`` becomes a view of it)
         for i in range(n_mu):
-            tab[i + 1, ..., 0, :] = src[i]
-            tab[i + 1, ..., 1, :] = _log_slopes(self.mus_nodes, np.asarray(src[i], dtype=np.float64), axis=2)
+            tab[i + 1, 1:-1, ..., 0, :] = src[i]
+            tab[i + 1, 1:-1, ..., 1, :] = _log_slopes(self.mus_nodes, np.asarray(src[i], dtype=np.float64), axis=2)
+        for edge, a, b in ((0, 1, 2), (n_phi + 1, n_phi, n_phi - 1)):
+            ring_j, ring_s = tab[1:-1, a, ..., 0, :], tab[1:-1, a, ..., 1, :]
+            if n_phi < 2:
+                tab[1:-1, edge] = tab[1:-1, a]
+                continue
+            j2 = tab[1:-1, b, ..., 0, :]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                ratio = np.where((ring_j > 0) & (j2 > 0), ring_j / np.where(j2 > 0, j2, 1.0), 1.0)
+            tab[1:-1, edge, ..., 0, :] = ring_j * ratio ** np.float32(0.125)
+            tab[1:-1, edge, ..., 1, :] = ring_s + (ring_s - tab[1:-1, b, ..., 1, :]) * np.float32(0.125)
         for pole, ring in ((0, 1), (n_mu + 1, n_mu)):
-            j = tab[ring, ..., 0, :]  # (n_phi, n_h, n_mus, n_wl); the phi nodes are equally spaced
+            j = tab[ring, 1:-1, ..., 0, :]  # (n_phi, n_h, n_mus, n_wl); the phi nodes are equally spaced
             jm = j.mean(axis=0)
             with np.errstate(invalid="ignore", divide="ignore"):
-                sl = np.where(jm > 0, (j * tab[ring, ..., 1, :]).mean(axis=0) / np.where(jm > 0, jm, 1.0),
-                              tab[ring, ..., 1, :].mean(axis=0))
+                sl = np.where(jm > 0, (j * tab[ring, 1:-1, ..., 1, :]).mean(axis=0) / np.where(jm > 0, jm, 1.0),
+                              tab[ring, 1:-1, ..., 1, :].mean(axis=0))
             tab[pole, ..., 0, :] = jm[None]
             tab[pole, ..., 1, :] = sl[None]
         self._mu_poles = np.concatenate([[-1.0], np.asarray(self.mu_nodes, dtype=float), [1.0]])
-        self._table = None  # a table of an older version (pickled solutions) is not used
+        self._phi_edges = np.concatenate([[0.0], np.asarray(self.phi_nodes, dtype=float), [np.pi]])
+        self._table = self._table_poles = None  # tables of older versions (pickled solutions) are not used
         if self.scattering is None:
-            self.source = np.moveaxis(tab[1:-1, ..., 0, :], -1, 0)  # the same values, a view: one copy kept
-        self._table_poles = tab
+            self.source = np.moveaxis(tab[1:-1, 1:-1, ..., 0, :], -1, 0)  # the same values, a view: one copy kept
+        self._table_edges = tab
 
     def ground_irradiance_at(self, mu_s) -> np.ndarray:
         """Diffuse (sky) irradiance on the ground where the sun's zenith cosine is mu_s
