@@ -225,7 +225,7 @@ class MultipleScatteringField:
         edges; the edge holds the even quadratic in log J through the two nearest nodes,
         J_1 (J_1 / J_2)^(1/8) (the log-slope extrapolated the same way), and phi is read
         linearly between it and the first node. (Measured against the Monte Carlo truth:
-        docs/accuracy.md, "Twilight toward the sun".)"""
+        docs/accuracy.md, "The principal plane".)"""
         tab = getattr(self, "_table_edges", None)
         if tab is not None:
             return tab
