@@ -246,9 +246,10 @@ def bent_beam_depth(sun_table, profile, medium, cutoff_deg: float, *, true_mediu
     f = np.clip((elev - e_nodes[k]) / (e_nodes[k + 1] - e_nodes[k]), 0.0, 1.0)[..., None]
     r = np.arange(rows.size)[:, None]
     d_at = (d[r, k] * (1.0 - f) + d[r, k + 1] * f) * inside[..., None]  # (rows, n_x, P)
-    tau_true = st.basis_depths(hh, mu, (true_medium,))[0] @ st.weights[true_medium][:, pi]
+    depth_true, depth_s = st.basis_depths(hh, mu, (true_medium, scaled_medium))  # one lookup for both
+    tau_true = depth_true @ st.weights[true_medium][:, pi]
     k_s = st.base_ranks[scaled_medium]
-    tau_s = st.basis_depths(hh, mu, (scaled_medium,))[0][..., :k_s] @ st.weights[scaled_medium][:k_s, pi]
+    tau_s = depth_s[..., :k_s] @ st.weights[scaled_medium][:k_s, pi]
     t_eff = np.maximum(np.exp(-tau_s) + d_at, np.exp(-tau_true))
     corr[rows] = np.where(inside[..., None], -np.log(np.clip(t_eff, 1e-300, None)) - tau_s, 0.0)
     return probes, corr
