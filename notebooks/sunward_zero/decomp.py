@@ -1,0 +1,36 @@
+"""Components of `final` (exact directions) at chosen views of a truth scene: single, the
+solver's source gathered along the view ray, the peak aureole, the rest of `multiple`, ground.
+usage: decomp.py scene views [variant]"""
+import sys, os
+import numpy as np
+sys.path[:0] = ["benchmarks"]
+import bench_truth as bt
+from dataclasses import replace
+from skymodel.render.marcher import SkyMarcher
+from skymodel.render.quality import QUALITIES
+scene = sys.argv[1]; views = sys.argv[2].split(","); var = sys.argv[3] if len(sys.argv) > 3 else ""
+a, e = scene.split(":")
+sc = bt.Scene(a, float(e), os.environ.get("TRUTH_CACHE", ".cache/truth"))
+keep = [i for i, v in enumerate(sc.views) if f"{v[0]:g}/{v[1]:g}" in views]
+prof = sc.atm.optical_profile(list(bt.MARCH_WAVELENGTHS_NM))
+wl = np.asarray(prof.wavelengths_nm); idx = [int(np.argmin(np.abs(wl - w))) for w in bt.MC_WAVELENGTHS_NM]
+s = replace(QUALITIES["final"].settings, exact=True, **bt._parse_variant(var))
+m = SkyMarcher(prof, sc.elev, bt.SUN_AZIMUTH, 0.0, s)
+rec = {}
+orig_a = SkyMarcher._aureole_gather
+def ag(self, *a, **k):
+    out = orig_a(self, *a, **k); rec.setdefault("aur", []).append(out); return out
+SkyMarcher._aureole_gather = ag
+orig_g = SkyMarcher._gather_ms
+def gm(self, rings, D):
+    out = orig_g(self, rings, D); rec.setdefault("ms", []).append((out @ self.to_full) * self.profile.solar_irradiance); return out
+SkyMarcher._gather_ms = gm
+norm = np.asarray(prof.solar_irradiance)[idx]
+for i in keep:
+    rec.clear()
+    r = m.radiance(sc.dirs[i:i+1])
+    aur = rec["aur"][0].reshape(-1, len(wl))[0]; ms = rec["ms"][0].reshape(-1, len(wl))[0]
+    tot = r.radiance[0]
+    print(f"{sc.views[i][0]:g}/{sc.views[i][1]:g}: total " + " ".join(f"{tot[j]/norm[k]:.4g}" for k, j in enumerate(idx)))
+    for name, x in (("single", r.single[0]), ("ms src", ms), ("aureole", aur), ("rest mult", r.multiple[0] - ms - aur), ("ground", r.ground[0])):
+        print(f"   {name:10s} " + " ".join(f"{100*x[j]/tot[j]:6.1f}%" for j in idx))
