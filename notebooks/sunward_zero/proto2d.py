@@ -71,7 +71,7 @@ for vname in views:
     tv = np.exp(-tau)
     STASH.clear()
     keep = np.flatnonzero((h < pp.MAX_ALTITUDE_M) & (tv[:, -1] > 1e-12))
-    bms(m.sun_table, prof, med, m.settings.delta_m_cutoff_deg, h[keep], np.degrees(e_sun[keep])[:, None])
+    bms(m.sun_table, prof, med, m.medium.cutoff_deg, h[keep], np.degrees(e_sun[keep])[:, None])
     S = h.size
     # lines per regime (S, X, P)
     lines = {}

@@ -33,7 +33,7 @@ for vname in views:
     e_sun = np.degrees(np.arcsin(np.clip(mus, -1, 1)))
     ext = med.extinction.at(h)[:, pi]
     tv = np.exp(-(np.cumsum(ext * dt[:, None], axis=0) - 0.5 * ext * dt[:, None]))
-    _, B = bms(m.sun_table, prof, med, m.settings.delta_m_cutoff_deg, h, e_sun[:, None])
+    _, B = bms(m.sun_table, prof, med, m.medium.cutoff_deg, h, e_sun[:, None])
     B = B[:, 0, :]  # (S, P) bent beam in the shadow, per unit irradiance
     cos_t = float(d @ m.sun)
     p_cap = m._capped_aerosol_phase(np.array([[cos_t]]))[:, 0, 0][:, pi]  # (R, P) (1-f) p*

@@ -11,7 +11,7 @@ exp(-h / 3 km) (the low air a low sun's light crosses); and the nodes below 5 km
 import numpy as np
 
 from skymodel import Atmosphere
-from skymodel.render.medium import factor_medium
+from skymodel.render.medium import delta_m_cone_deg, factor_medium
 from skymodel.render.multiple_scattering import scattering_reference, table_altitudes
 from skymodel.render.quality import QUALITIES
 
@@ -20,7 +20,8 @@ fine = np.linspace(0.0, 20000.0, 20001)
 weight = np.exp(-fine / 3000.0)[:, None]
 for loc, aod in (("rural", 0.2), ("desert", 0.5)):
     prof = Atmosphere(location=loc, month=6, aod550=aod).optical_profile(WL)
-    med = factor_medium(prof, QUALITIES["final"].settings.delta_m_cutoff_deg)
+    fin = QUALITIES["final"].settings
+    med = factor_medium(prof, delta_m_cone_deg(prof, fin.delta_m_cutoff_deg, fin.delta_m_mild_cutoff_deg))
     sigma = scattering_reference(med)
     for n in (32, 64):
         nodes = table_altitudes(med, n, prof.top_altitude_m * (1 - 1e-9))

@@ -37,7 +37,7 @@ sys.path[:0] = ["benchmarks"]
 import bench_truth as bt  # noqa: E402
 from skymodel.optics.atmosphere import Atmosphere  # noqa: E402
 from skymodel.render.marcher import SkyMarcher  # noqa: E402
-from skymodel.render.medium import truncate_forward_peak  # noqa: E402
+from skymodel.render.medium import delta_m_cone_deg, truncate_forward_peak  # noqa: E402
 from skymodel.render.quality import QUALITIES  # noqa: E402
 from skymodel.validation.montecarlo import trace_radiance  # noqa: E402
 
@@ -64,8 +64,9 @@ def delta_m(prof):
     """The profile with final's delta-M truncation applied to its aerosols."""
     if not dm:
         return prof
-    f, p_star = truncate_forward_peak(prof.aerosol_phase_angles_deg, prof.aerosol_phase,
-                                      QUALITIES["final"].settings.delta_m_cutoff_deg)
+    fin = QUALITIES["final"].settings
+    cone = delta_m_cone_deg(prof, fin.delta_m_cutoff_deg, fin.delta_m_mild_cutoff_deg)  # final's cone for this sky
+    f, p_star = truncate_forward_peak(prof.aerosol_phase_angles_deg, prof.aerosol_phase, cone)
     return prof.with_(aerosol_phase=p_star, aerosol_scattering_by_regime=prof.aerosol_scattering_by_regime
                       * (1.0 - f[:, None, :]))
 

@@ -42,7 +42,8 @@ SUN_ELEVATION = -4.0
 VIEWS = ((88.0, 0.0), (80.0, 0.0), (45.0, 0.0), (0.0, 0.0), (70.0, 90.0), (88.0, 180.0))
 #: the Monte Carlo comparison's converged marcher with the tables of revision 7a3823a (its
 #: *before* settings until revision 2d94d81)
-TABLES_7A3823A = replace(CONVERGED, table_altitudes=32, table_mu=32, table_phi=12, delta_m_cutoff_deg=12.0)
+TABLES_7A3823A = replace(CONVERGED, table_altitudes=32, table_mu=32, table_phi=12, delta_m_cutoff_deg=12.0,
+                         delta_m_mild_cutoff_deg=0.0)
 #: (sun-angle interpolation, table_mus)
 ROWS = (("log-linear", 24), ("log-linear", 48), ("log-linear", 96), ("log-linear", 192), ("cubic in log", 24),
         ("cubic in log", 96))

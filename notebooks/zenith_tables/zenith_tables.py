@@ -46,7 +46,8 @@ def main(argv=None):
     prof = Atmosphere(location="rural", month=6, aod550=0.2).optical_profile(list(WAVELENGTHS_NM))
     prof = replace(prof, ground_albedo=np.zeros(len(WAVELENGTHS_NM)))
     d = direction_from_angles(np.array([0.0]), np.array([180.0]))
-    first = replace(CONVERGED, table_mu=32, table_phi=12, table_altitudes=32, delta_m_cutoff_deg=12.0, orders=1)
+    first = replace(CONVERGED, table_mu=32, table_phi=12, table_altitudes=32, delta_m_cutoff_deg=12.0,
+                    delta_m_mild_cutoff_deg=0.0, orders=1)
     mc1 = trace_radiance(prof, d, SUN_ELEVATION, 180.0, n_paths=a.paths, seed=a.seed, max_bounces=1)
     m1 = SkyMarcher(prof, SUN_ELEVATION, 180.0, 0.0, first).radiance(d).radiance
     mc = trace_radiance(prof, d, SUN_ELEVATION, 180.0, n_paths=a.paths, seed=a.seed)

@@ -62,7 +62,8 @@ import numpy as np
 from skymodel.errors import SkymodelInputError, check_finite, check_range
 from skymodel.numerics import linear_interp_matrix
 from skymodel.optics.profile import LayeredProfile, OpticalProfile
-from skymodel.render.medium import evaluate_many, factor_medium, march_samples, samples_by_depth, step_transmittance
+from skymodel.render.medium import (delta_m_cone_deg, evaluate_many, factor_medium, march_samples, samples_by_depth,
+                                    step_transmittance)
 from skymodel.render.multiple_scattering import MultipleScatteringField, solve_multiple_scattering
 from skymodel.render.peak_paths import add_peak_paths
 from skymodel.render.rays import altitude_along, atmosphere_segment, sun_direction
@@ -116,11 +117,15 @@ class MarchSettings:
     sun_exact_deg: float = 8.0  # directions this close to the sun are evaluated exactly
     # Half-angle of the forward-peak cone that delta-M cuts from the aerosol phase functions
     # in the multiple-scattering part (the peak aureole puts back what is cut). 12 degrees
-    # suits the default tables; within about 3 degrees of a sun at the horizon, in dust, the
-    # aureole's small-angle approximation is then ~10 % low. A 3-degree cone with
-    # table_mu=64, table_phi=48 removes that at 4-5x the solver time (docs/accuracy.md,
-    # "The sunward horizon at sunset"); a narrow cone with coarse tables is worse than 12.
+    # suits the default tables for a sharp peak (coarse dust); within about 3 degrees of a
+    # sun at the horizon, in dust, the aureole's small-angle approximation is then ~10 % low.
+    # A 3-degree cone with table_mu=64, table_phi=48 removes that at 4-5x the solver time
+    # (docs/accuracy.md, "The sunward horizon at sunset"); a narrow cone with coarse tables
+    # is worse than 12.
     delta_m_cutoff_deg: float = 12.0
+    # The narrower cone for a mild forward peak (most aerosol types: skymodel.render.medium.
+    # delta_m_cone_deg; with table_phi >= 12 only); 0 = always delta_m_cutoff_deg
+    delta_m_mild_cutoff_deg: float = 6.0
     spherical_orders: int = 2  # transports with each point's own sun angle (0 = independent columns)
     spherical_probe_step_nm: float = 100.0  # wavelength spacing of the spherical correction (orders >= 2)
     peak_aureole: bool = True  # add the light scattered 2+ times in the cut forward peaks (skymodel.render.aureole)
@@ -235,19 +240,20 @@ def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> 
     s = settings or MarchSettings()
     t_start = time.perf_counter()
     R, top = profile.planet_radius_m, profile.top_altitude_m
-    medium = factor_medium(profile, s.delta_m_cutoff_deg)
+    cone = delta_m_cone_deg(profile, s.delta_m_cutoff_deg, s.delta_m_mild_cutoff_deg, table_phi=s.table_phi)
+    medium = factor_medium(profile, cone)
     # multiple scattering runs at the solver wavelengths, per unit solar irradiance
     wl_ms = solver_wavelengths(profile.wavelengths_nm, s.ms_wavelength_step_nm)
     prof_ms = profile_at_wavelengths(profile, wl_ms)
     prof_ms = replace(prof_ms, solar_irradiance=np.ones_like(wl_ms))
-    medium_ms = factor_medium(prof_ms, s.delta_m_cutoff_deg)
+    medium_ms = factor_medium(prof_ms, cone)
     # one table serves all: medium 0 = true extinction on the full grid, medium 1 =
     # delta-M scaled extinction at the solver wavelengths, medium 2 = the same on the full grid
     sun_table = SunTransmittance([medium.extinction, medium_ms.extinction_scaled, medium.extinction_scaled], R,
                                  top, s.sun_table_altitudes, s.sun_table_x, s.sun_table_steps,
                                  earth_shadow=s.earth_shadow)
     if s.peak_paths:
-        add_peak_paths(sun_table, profile, medium, s.delta_m_cutoff_deg)
+        add_peak_paths(sun_table, profile, medium, cone)
     timings = {"tables_s": time.perf_counter() - t_start}
     t1 = time.perf_counter()
     ms_field: MultipleScatteringField = solve_multiple_scattering(
@@ -257,7 +263,7 @@ def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> 
         spherical_probe_step_nm=s.spherical_probe_step_nm, peak_diffuse=s.peak_diffuse,
         source_by_scattering=s.source_by_scattering, progress=progress)
     to_full = linear_interp_matrix(wl_ms, profile.wavelengths_nm)
-    aureole = (peak_aureole_table(profile, medium, s.delta_m_cutoff_deg, top)
+    aureole = (peak_aureole_table(profile, medium, cone, top)
                if (s.peak_aureole and ms_field.orders > 1) else None)
     timings["multiple_scattering_s"] = time.perf_counter() - t1
     return SkySolution(optics_key(profile, s), s, medium, medium_ms, sun_table, ms_field, to_full, aureole, timings)
@@ -447,7 +453,7 @@ class SkyMarcher:
 
     def _peak_aureole(self):
         """The peak-aureole table of this marcher's medium (:func:`peak_aureole_table`)."""
-        return peak_aureole_table(self.profile, self.medium, self.settings.delta_m_cutoff_deg, self.top)
+        return peak_aureole_table(self.profile, self.medium, self.medium.cutoff_deg, self.top)
 
     def _aureole_gather(self, cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s, block: int = 256):
         """Integral along the view rays of directions (G, A) on rings (samples (G, S)) of

@@ -1,9 +1,9 @@
 """The delta-M sun beam near a low sun: the cut forward peak's light on its own, bent paths.
 
 Delta-M (:mod:`skymodel.render.medium`) books the light that aerosols scatter into their cut
-forward peak (a 12-degree cone in every preset) as not scattered: it goes on along the sun's
-straight path, through the same air as the direct beam, with the scaled extinction tau*.
-So every point's "sun" in the solver and in the marcher's delta-M first scattering is
+forward peak (a 6- or 12-degree cone, :func:`skymodel.render.medium.delta_m_cone_deg`) as not
+scattered: it goes on along the sun's straight path, through the same air as the direct beam,
+with the scaled extinction tau*. So every point's "sun" in the solver and in the marcher's delta-M first scattering is
 exp(-tau*) along the straight line. Where the air along that line changes little with the
 direction, that is right. Near a low sun it is not: the straight path to a point low in the
 boundary layer is the densest there is (rural aerosol, sun on the horizon: a direct beam of

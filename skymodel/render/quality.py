@@ -91,7 +91,7 @@ QUALITIES: dict[str, Quality] = {
         MarchSettings(view_steps=64, order_tolerance=1e-2, ms_wavelength_step_nm=40.0, table_altitudes=24,
                       table_mu=16, table_phi=8, table_mus=32, table_steps=32, sun_table_altitudes=64,
                       sun_table_x=128, sun_table_steps=96, grid_zenith=64, grid_zenith_ground=16,
-                      grid_azimuth=37, peak_diffuse=True),
+                      grid_azimuth=37, peak_diffuse=True, delta_m_mild_cutoff_deg=0.0),
         environment_width_px=512, wavelength_step_nm=10.0,
         purpose="interactive work: a 512x256 sky in seconds, about 1 % mean radiance error at worst (twilight)",
         target={"radiance_rel_mean": 0.02, "time_s": 10.0}),

@@ -35,7 +35,7 @@ from skymodel.render.sky import SkyImage, check_render_arguments, render_sky, re
 __all__ = ["SolutionCache", "render_frame", "render_frame_reduced", "SOLUTION_FORMAT"]
 
 #: Version of the pickled :class:`SkySolution` layout; part of every cache file's name.
-SOLUTION_FORMAT = 3
+SOLUTION_FORMAT = 4  # 4: the medium carries its delta-M cone (FactoredMedium.cutoff_deg)
 
 
 class SolutionCache:
