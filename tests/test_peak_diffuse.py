@@ -101,3 +101,21 @@ def test_the_convolution_is_scipys_same_mode():
     for n, m in ((100, 31), (3601, 241), (50, 80), (8, 6)):
         a, k = rng.random((n, 4, 3)), rng.random((m, 1, 3))
         np.testing.assert_allclose(_convolve_same(a, k), fftconvolve(a, k, mode="same", axes=0), rtol=0, atol=1e-12)
+
+
+def test_the_fft_length_is_the_next_product_of_2_3_and_5():
+    """The transforms are padded to the smallest 2^a 3^b 5^c at or above n + m - 1 (the 6-degree
+    cone's 3841 = 23 x 167 became 3888 = 2^4 3^5, the 12-degree cone's 4081 became 4096)."""
+    from skymodel.render.peak_diffuse import _fast_length
+
+    smooth = [k for k in range(1, 5000) if _only_2_3_5(k)]
+    for n in (1, 2, 7, 13, 241, 3841, 4081, 4097):
+        assert _fast_length(n) == min(k for k in smooth if k >= n)
+    assert _fast_length(3841) == 3888 and _fast_length(4081) == 4096
+
+
+def _only_2_3_5(k):
+    for p in (2, 3, 5):
+        while k % p == 0:
+            k //= p
+    return k == 1
