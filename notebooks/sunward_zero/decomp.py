@@ -1,21 +1,16 @@
 """Components of `final` (exact directions) at chosen views of a truth scene: single, the
 solver's source gathered along the view ray, the peak aureole, the rest of `multiple`, ground.
 usage: decomp.py scene views [variant]"""
-import sys, os
+import os
+import sys
 import numpy as np
-sys.path[:0] = ["benchmarks"]
-import bench_truth as bt
-from dataclasses import replace
-from skymodel.render.marcher import SkyMarcher
-from skymodel.render.quality import QUALITIES
+sys.path[:0] = [os.path.dirname(os.path.abspath(__file__))]
+import _setup as su  # noqa: E402
+from skymodel.render.marcher import SkyMarcher  # noqa: E402
 scene = sys.argv[1]; views = sys.argv[2].split(","); var = sys.argv[3] if len(sys.argv) > 3 else ""
-a, e = scene.split(":")
-sc = bt.Scene(a, float(e), os.environ.get("TRUTH_CACHE", ".cache/truth"))
+sc, prof, wl, idx = su.scene(scene)
 keep = [i for i, v in enumerate(sc.views) if f"{v[0]:g}/{v[1]:g}" in views]
-prof = sc.atm.optical_profile(list(bt.MARCH_WAVELENGTHS_NM))
-wl = np.asarray(prof.wavelengths_nm); idx = [int(np.argmin(np.abs(wl - w))) for w in bt.MC_WAVELENGTHS_NM]
-s = replace(QUALITIES["final"].settings, exact=True, **bt._parse_variant(var))
-m = SkyMarcher(prof, sc.elev, bt.SUN_AZIMUTH, 0.0, s)
+m = su.marcher(sc, prof, **su.bt._parse_variant(var))
 rec = {}
 orig_a = SkyMarcher._aureole_gather
 def ag(self, *a, **k):

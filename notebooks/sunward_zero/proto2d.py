@@ -1,14 +1,14 @@
 """Prototype: the last peak turn at each view point of light that arrived along bent lines
 (2D small-angle), replacing the straight plane-wave aureole. usage: proto2d.py scene views"""
-import inspect, sys, os
+import inspect
+import os
+import sys
 import numpy as np
-from dataclasses import replace
-sys.path[:0] = ["benchmarks"]
-import bench_truth as bt
-import skymodel.render.peak_paths as pp
-from skymodel.render.peak_diffuse import peak_of
-from skymodel.render.marcher import SkyMarcher
-from skymodel.render.quality import QUALITIES
+sys.path[:0] = [os.path.dirname(os.path.abspath(__file__))]
+import _setup as su  # noqa: E402
+import skymodel.render.peak_paths as pp  # noqa: E402
+from skymodel.render.peak_diffuse import peak_of  # noqa: E402
+from skymodel.render.marcher import SkyMarcher  # noqa: E402
 
 src = inspect.getsource(pp.bent_minus_straight)
 src = src.replace("            d += np.einsum(\"nxp,xp->np\", line, k) - line[:, i0]",
@@ -19,11 +19,8 @@ bms = ns["bent_minus_straight"]
 
 scene, views = sys.argv[1], sys.argv[2].split(",")
 MODE = os.environ.get("MODE", "replace")
-a, e = scene.split(":")
-sc = bt.Scene(a, float(e), os.environ.get("TRUTH_CACHE", ".cache/truth"))
-prof = sc.atm.optical_profile(list(bt.MARCH_WAVELENGTHS_NM))
-m = SkyMarcher(prof, sc.elev, bt.SUN_AZIMUTH, 0.0, replace(QUALITIES["final"].settings, exact=True))
-wl = np.asarray(prof.wavelengths_nm)
+sc, prof, wl, _ = su.scene(scene)
+m = su.marcher(sc, prof)
 pi = pp.probe_indices(wl); probes = wl[pi]
 med = m.medium
 kern = pp._kernels(prof, med, pi, np.radians(np.arange(-13, 14) * 1.0))
@@ -47,14 +44,10 @@ def ag(self, *aa, **kk):
     out = orig(self, *aa, **kk); rec["aur"] = out; return out
 SkyMarcher._aureole_gather = ag
 
-base = np.load(f"{os.environ.get('TRUTH_MISSES_OUT', '.cache/truth_misses')}/var_{sc.name}_base.npz")["r"]
-prof_mc, mc = sc.load_mc()
-truth = mc["mean"] / np.asarray(prof_mc.solar_irradiance)[None, :]
-se = mc["se"] / np.asarray(prof_mc.solar_irradiance)[None, :]
+truth, se, base = su.truth_and_base(sc)
 sun = m.sun
 for vname in views:
-    i = [k for k, v in enumerate(sc.views) if f"{v[0]:g}/{v[1]:g}" == vname][0]
-    d = sc.dirs[i] / np.linalg.norm(sc.dirs[i])
+    i, d = su.view(sc, vname)
     res = m.radiance(d[None])
     tot = res.radiance[0][pi]; aur = rec["aur"].reshape(-1, wl.size)[0][pi]
     rings = m._rings(np.array([d[2]]))
@@ -98,9 +91,9 @@ for vname in views:
                     A[p] += dt[s] * tv[s, p] * sig2[p] * (lf * w).sum() * dg
     A *= prof.solar_irradiance[pi]
     new = tot - aur + A if MODE == "replace" else tot + A
-    ratio = np.interp(bt.MC_WAVELENGTHS_NM, probes, new / tot)
-    aurs = np.interp(bt.MC_WAVELENGTHS_NM, probes, aur / tot)
-    As = np.interp(bt.MC_WAVELENGTHS_NM, probes, A / tot)
+    ratio = np.interp(su.bt.MC_WAVELENGTHS_NM, probes, new / tot)
+    aurs = np.interp(su.bt.MC_WAVELENGTHS_NM, probes, aur / tot)
+    As = np.interp(su.bt.MC_WAVELENGTHS_NM, probes, A / tot)
     relb = base[i] / truth[i] - 1; reln = base[i] * ratio / truth[i] - 1
     print(f"{vname}: base " + "/".join(f"{100*x:+.2f}" for x in relb) + "  new " + "/".join(f"{100*x:+.2f}" for x in reln)
           + "  (aur " + "/".join(f"{100*x:.1f}" for x in aurs) + " %, A " + "/".join(f"{100*x:.1f}" for x in As) + " % of total; se "

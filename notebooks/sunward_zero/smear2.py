@@ -1,40 +1,28 @@
 """Magnitude test: the cut peak's 2D smear minus its elevation-only (1D, peak_diffuse's)
 smear, applied to the sky the observer sees, at view points (L(P, u) ~ L_obs(u))."""
-import sys, os
+import os
+import sys
 import numpy as np
-from dataclasses import replace
-sys.path[:0] = ["benchmarks"]
-import bench_truth as bt
-from skymodel.render.peak_diffuse import peak_of
-from skymodel.render.marcher import SkyMarcher
-from skymodel.render.quality import QUALITIES
+sys.path[:0] = [os.path.dirname(os.path.abspath(__file__))]
+import _setup as su  # noqa: E402
+from skymodel.render.peak_diffuse import peak_of  # noqa: E402
 scene, views = sys.argv[1], sys.argv[2].split(",")
 KM = float(os.environ.get("KM", "1e9"))
-a, e = scene.split(":")
-sc = bt.Scene(a, float(e), os.environ.get("TRUTH_CACHE", ".cache/truth"))
-prof = sc.atm.optical_profile(list(bt.MARCH_WAVELENGTHS_NM))
-wl = np.asarray(prof.wavelengths_nm); idx = [int(np.argmin(np.abs(wl - w))) for w in bt.MC_WAVELENGTHS_NM]
-m = SkyMarcher(prof, sc.elev, bt.SUN_AZIMUTH, 0.0, replace(QUALITIES["final"].settings, exact=True))
+sc, prof, wl, idx = su.scene(scene)
+m = su.marcher(sc, prof)
 SE, SA = 0.25, 0.5
 els = np.arange(-14.0, 20.0 + 1e-9, SE) + SE / 2; azs = np.arange(-20.0, 62.0 + 1e-9, SA)
 EL, AZ = np.meshgrid(els, azs, indexing="ij")
-sun = m.sun / np.linalg.norm(m.sun)
-up = np.array([0.0, 0.0, 1.0]); hor = sun - sun[2] * up; hor /= np.linalg.norm(hor); side = np.cross(up, hor)
-def vec(el, az):
-    el, az = np.radians(el), np.radians(az)
-    return (np.cos(el) * np.cos(az))[..., None] * hor + (np.cos(el) * np.sin(az))[..., None] * side + np.sin(el)[..., None] * up
+hor, side, up, vec = su.sun_frame(m)
 D = vec(EL, AZ).reshape(-1, 3)
 L = (m.radiance(D).radiance[:, idx] / prof.solar_irradiance[idx]).reshape(EL.shape + (3,))
 med = m.medium
 peaks = peak_of(prof, med)[:, :, idx]
 ang = np.asarray(prof.aerosol_phase_angles_deg, float)
 dOm = np.cos(np.radians(EL)) * np.radians(SE) * np.radians(SA)
-prof_mc, mc = sc.load_mc()
-truth = mc["mean"] / np.asarray(prof_mc.solar_irradiance)[None, :]
-base = np.load(f"{os.environ.get('TRUTH_MISSES_OUT', '.cache/truth_misses')}/var_{sc.name}_base.npz")["r"]
+truth, _, base = su.truth_and_base(sc)
 for vname in views:
-    i = [k for k, v in enumerate(sc.views) if f"{v[0]:g}/{v[1]:g}" == vname][0]
-    d = sc.dirs[i] / np.linalg.norm(sc.dirs[i])
+    i, d = su.view(sc, vname)
     v_el = np.degrees(np.arcsin(d[2])); v_az = abs(np.degrees(np.arctan2(d @ side, d @ hor)))
     rings = m._rings(np.array([d[2]]))
     h, dt, t = rings.h[0], rings.dt[0], rings.t[0]
