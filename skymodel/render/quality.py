@@ -84,7 +84,9 @@ class Quality:
 #: final and reference peak_diffuse off -> on (the cut forward peaks' scattering of the diffuse light
 #: near the horizon: desert 60 degrees, 89 deg views -8 % -> within 1.5 %); preview peak_diffuse off -> on
 #: and view_steps 40 -> 64 (the truth table's 7 scenes: median 0.5-1.8 % -> 0.3-1.6 %, worst better in 6;
-#: the warm 512x256 rebuild 0.37 -> 0.51 s).
+#: the warm 512x256 rebuild 0.37 -> 0.51 s); final and reference cut a mild aerosol peak at 6 degrees
+#: (MarchSettings.delta_m_mild_cutoff_deg: rural 0 / -4 degrees worst -5.6 -> -2.8 % and
+#: -4.7 -> -2.0 % in final), preview keeps 12 (on its 16 x 8 nodes 6 degrees moved its errors about).
 QUALITIES: dict[str, Quality] = {
     "preview": Quality(
         "preview",
