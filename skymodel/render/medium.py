@@ -134,16 +134,6 @@ CONE_WAVELENGTH_NM = 550.0
 MILD_CONE_MIN_TABLE_PHI = 12
 
 
-def _column_scattering(profile) -> np.ndarray:
-    """Column aerosol scattering optical depth of each regime at every wavelength, (R, W)."""
-    aer = np.asarray(profile.aerosol_scattering_by_regime, dtype=float)
-    if isinstance(profile, LayeredProfile):
-        return (aer * np.diff(profile.edges_m)[None, :, None]).sum(axis=1)
-    from skymodel.numerics import trapezoid
-
-    return trapezoid(aer, np.asarray(profile.altitudes_m, dtype=float), axis=1)
-
-
 def delta_m_cone_deg(profile, cutoff_deg: float, mild_cutoff_deg: float = 0.0,
                      mild_fall: float = MILD_PEAK_FALL, table_phi: int | None = None) -> float:
     """The delta-M cone (half-angle, degrees) for ``profile``: ``mild_cutoff_deg`` where the
@@ -166,11 +156,12 @@ def delta_m_cone_deg(profile, cutoff_deg: float, mild_cutoff_deg: float = 0.0,
         return cutoff_deg
     if table_phi is not None and int(table_phi) < MILD_CONE_MIN_TABLE_PHI:
         return cutoff_deg
-    col = _column_scattering(profile)  # (R, W)
     w = int(np.argmin(np.abs(np.asarray(profile.wavelengths_nm, dtype=float) - CONE_WAVELENGTH_NM)))
-    if col.size == 0 or not np.any(col[:, w] > 0):
+    # each regime's column scattering optical depth at w (the profile's own vertical integral)
+    col = np.array([profile.vertical_optical_depth(a)[w] for a in profile.aerosol_scattering_by_regime])
+    if col.size == 0 or not np.any(col > 0):
         return cutoff_deg
-    r = int(np.argmax(col[:, w]))
+    r = int(np.argmax(col))
     ang = np.asarray(profile.aerosol_phase_angles_deg, dtype=float)
     p = np.asarray(profile.aerosol_phase, dtype=float)[r, :, w]
     inner, outer = np.interp([mild_cutoff_deg, cutoff_deg], ang, p)

@@ -3,14 +3,14 @@ scattering of the solver's radiance field across the sky/ground edge.
 
 Delta-M (:mod:`skymodel.render.medium`) cuts the aerosols' forward peaks (a fraction f of
 aerosol scattering inside a cone of 6 or 12 degrees,
-:func:`~skymodel.render.medium.delta_m_cone_deg`; f = 0.85-0.88 for the desert's coarse dust) and
-treats the cut light as not scattered: a point scatters sigma f integral(q L) into a direction
-d, with q the peak's normalised shape around d, and delta-M books it as sigma f L(d), light that
-goes on along d (the scaled extinction). The two agree where the radiance L is smooth across the peak. Near the
-horizon it is not: a direction a degree above the local horizon has the bright ground a
-degree or two below it, so the true source there holds ground light turned by a few
-degrees, which delta-M leaves out (measured, desert AOD 0.5, sun 60 degrees, view zenith
-89 degrees: the marcher 2-8 % below the Monte Carlo tracer at every preset, all of it
+:func:`~skymodel.render.medium.delta_m_cone_deg`; f = 0.85-0.88 for the desert's coarse dust)
+and treats the cut light as not scattered: a point scatters sigma f integral(q L) into a
+direction d, with q the peak's normalised shape around d, and delta-M books it as sigma f L(d),
+light that goes on along d (the scaled extinction). The two agree where the radiance L is smooth
+across the peak. Near the horizon it is not: a direction a degree above the local horizon has
+the bright ground a degree or two below it, so the true source there holds ground light turned
+by a few degrees, which delta-M leaves out (measured, desert AOD 0.5, sun 60 degrees, view
+zenith 89 degrees: the marcher 2-8 % below the Monte Carlo tracer at every preset, all of it
 ground light; docs/accuracy.md, "Where the presets miss the truth").
 
 This module gives the missing term to the solver's source, order by order:

@@ -3,13 +3,13 @@
 Delta-M (:mod:`skymodel.render.medium`) books the light that aerosols scatter into their cut
 forward peak (a 6- or 12-degree cone, :func:`skymodel.render.medium.delta_m_cone_deg`) as not
 scattered: it goes on along the sun's straight path, through the same air as the direct beam,
-with the scaled extinction tau*. So every point's "sun" in the solver and in the marcher's delta-M first scattering is
-exp(-tau*) along the straight line. Where the air along that line changes little with the
-direction, that is right. Near a low sun it is not: the straight path to a point low in the
-boundary layer is the densest there is (rural aerosol, sun on the horizon: a direct beam of
-2e-10 at 650 nm on the ground), while light turned by a few degrees reaches the point along
-lines that cross far less air, or meet the ground (light from below the horizon does not
-arrive at all). Against the Monte Carlo truth (rural AOD 0.2, ``final``) delta-M's straight
+with the scaled extinction tau*. So every point's "sun" in the solver and in the marcher's
+delta-M first scattering is exp(-tau*) along the straight line. Where the air along that line
+changes little with the direction, that is right. Near a low sun it is not: the straight path to
+a point low in the boundary layer is the densest there is (rural aerosol, sun on the horizon: a
+direct beam of 2e-10 at 650 nm on the ground), while light turned by a few degrees reaches the
+point along lines that cross far less air, or meet the ground (light from below the horizon does
+not arrive at all). Against the Monte Carlo truth (rural AOD 0.2, ``final``) delta-M's straight
 path left the horizon toward a sun at 0 degrees 5-9 % low at 650 nm out to 45 degrees of
 azimuth, and the horizon of a sun at 5 degrees 1-2 % high (docs/accuracy.md).
 
