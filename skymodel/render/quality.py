@@ -86,7 +86,11 @@ class Quality:
 #: and view_steps 40 -> 64 (the truth table's 7 scenes: median 0.5-1.8 % -> 0.3-1.6 %, worst better in 6;
 #: the warm 512x256 rebuild 0.37 -> 0.51 s); final and reference cut a mild aerosol peak at 6 degrees
 #: (MarchSettings.delta_m_mild_cutoff_deg: rural 0 / -4 degrees worst -5.6 -> -2.8 % and
-#: -4.7 -> -2.0 % in final), preview keeps 12 (on its 16 x 8 nodes 6 degrees moved its errors about).
+#: -4.7 -> -2.0 % in final), preview keeps 12 (on its 16 x 8 nodes 6 degrees moved its errors about);
+#: reference table_phi 16 -> 24 (the sky's mean moves with the azimuth count, 8/12/14/16/20/24/32 nodes at
+#: rural 5 degrees, 550 nm: +0.62/-0.07/+0.17/+0.36/+0.14/+0.06/+0.10 %, the sun's forward lobe in the
+#: first-order field falling between nodes; 16 was the worst of them: median 0.30/0.55 -> 0.17/0.33 %
+#: at 550/650 nm against the truth, notebooks/phase_cells).
 QUALITIES: dict[str, Quality] = {
     "preview": Quality(
         "preview",
@@ -107,7 +111,7 @@ QUALITIES: dict[str, Quality] = {
     "reference": Quality(
         "reference",
         MarchSettings(view_steps=128, order_tolerance=1e-4, ms_wavelength_step_nm=10.0, table_altitudes=32,
-                      table_mu=48, table_phi=16, table_mus=32, table_steps=96, sun_table_altitudes=128,
+                      table_mu=48, table_phi=24, table_mus=32, table_steps=96, sun_table_altitudes=128,
                       sun_table_x=256, sun_table_steps=320, grid_zenith=192, grid_zenith_ground=48,
                       grid_azimuth=121, sun_exact_deg=12.0, peak_diffuse=True),
         environment_width_px=2048, wavelength_step_nm=5.0,
