@@ -90,3 +90,31 @@ def test_spherical_transport_changes_nothing_with_a_high_sun():
     assert np.all(err_sph < err_col)
     err_col_scattering = np.abs(run(replace(coarse, source_by_scattering=True), 0).multiple / sph.multiple - 1)
     assert np.all(err_col_scattering < err_col)
+
+
+def test_spherical_tail_follows_every_order_in_twilight():
+    """With the sun 4 degrees below the horizon the diffuse orders beyond the second carry
+    the sunward horizon, and the independent columns leave them short (the sun angle of a
+    solver ray's start point, deep in the shadow, for its whole length). ``spherical_tail``
+    gives every order after ``spherical_orders`` the last order's correction: with it three
+    corrected orders must land within 0.5 % of correcting every order, where three alone are
+    about 1 % short (measured on these tables: 3 alone -0.97 %, 3 with the tail within 0.25 %,
+    2 alone -2.1 %). Order 2's correction is never reused (it is ~1e15 where the column light
+    of order 2 is ~0): with ``spherical_orders=2`` the tail changes nothing."""
+    from dataclasses import replace
+
+    prof = synthetic_profile(WL, aod550=0.2)
+    d = direction_from_angles(np.array([0.0, 85.0, 88.0, 89.0, 89.0, 85.0]),
+                              np.array([0.0, 180.0, 180.0, 180.0, 160.0, 0.0]))
+    base = MarchSettings(exact=True, table_altitudes=16, table_mu=16, table_phi=8, table_mus=24,
+                         ms_wavelength_step_nm=100, peak_aureole=False)
+
+    def multiple(n, tail):
+        s = replace(base, spherical_orders=n, spherical_tail=tail)
+        return SkyMarcher(prof, -4.0, 180.0, 0.0, s).radiance(d).multiple
+
+    every = multiple(20, False)
+    three, tail = multiple(3, False), multiple(3, True)
+    assert np.max(np.abs(three / every - 1)) > 0.007  # the tail has something to do here
+    np.testing.assert_allclose(tail, every, rtol=0.005)
+    np.testing.assert_array_equal(multiple(2, True), multiple(2, False))

@@ -127,6 +127,7 @@ class MarchSettings:
     # delta_m_cone_deg; with table_phi >= 12 only); 0 = always delta_m_cutoff_deg
     delta_m_mild_cutoff_deg: float = 6.0
     spherical_orders: int = 2  # transports with each point's own sun angle (0 = independent columns)
+    spherical_tail: bool = False  # orders after spherical_orders take the last order's spherical correction
     spherical_probe_step_nm: float = 100.0  # wavelength spacing of the spherical correction (orders >= 2)
     peak_aureole: bool = True  # add the light scattered 2+ times in the cut forward peaks (skymodel.render.aureole)
     peak_diffuse: bool = False  # scatter the diffuse light near the horizon in the cut peaks (skymodel.render.peak_diffuse)
@@ -260,7 +261,7 @@ def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> 
         prof_ms, medium_ms, sun_table, n_altitudes=s.table_altitudes, n_mu=s.table_mu,
         n_phi=s.table_phi, n_mus=s.table_mus, n_steps=s.table_steps, orders=s.orders,
         max_orders=s.max_orders, tolerance=s.order_tolerance, spherical_orders=s.spherical_orders,
-        spherical_probe_step_nm=s.spherical_probe_step_nm, peak_diffuse=s.peak_diffuse,
+        spherical_tail=s.spherical_tail, spherical_probe_step_nm=s.spherical_probe_step_nm, peak_diffuse=s.peak_diffuse,
         source_by_scattering=s.source_by_scattering, progress=progress)
     to_full = linear_interp_matrix(wl_ms, profile.wavelengths_nm)
     aureole = (peak_aureole_table(profile, medium, cone, top)

@@ -867,14 +867,24 @@ class OrderSeries:
     last_ground_irradiance: np.ndarray | None = None
 
 
+#: The largest spherical correction an order after ``spherical_orders`` takes from the last one
+#: (``spherical_tail``). Order 3's factor lies within 0.4-3.6 at 98 % of the corrected nodes (rural
+#: AOD 0.2, sun -4 degrees, ``final``) and the later orders' within 0.1 % of it at half of them, but
+#: it reaches 1e3 where order 3's column light is ~0; a node there would multiply the next orders'
+#: light by as much (notebooks/spherical_tail).
+SPHERICAL_TAIL_RATIO_MAX = 10.0
+
+
 def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G: np.ndarray, grid: TableGrid,
                           ground_albedo: np.ndarray, *, orders: int | None, max_orders: int, tolerance: float,
                           spherical: _SphericalTransport | None = None, spherical_orders: int = 0,
-                          progress=None, peak=None) -> OrderSeries:
+                          spherical_tail: bool = False, progress=None, peak=None) -> OrderSeries:
     """Orders 2, 3, ... from the first-order ``radiance`` (dir layout): each order
     scatters the last order's radiance into a source (:func:`scattered_source`), then
     transports it with the ground's reflection (:func:`gathered_radiance`; through
-    ``spherical``'s correction for orders up to ``spherical_orders``). Up to ``orders``
+    ``spherical``'s correction for orders up to ``spherical_orders``; with ``spherical_tail``
+    every later order takes the last correction computed, when that order is 3 or more: order
+    2's is not the diffuse orders' and can be ~1e15 where its column light is ~0). Up to ``orders``
     when given, else until an order adds less than ``tolerance`` of the sum of the source
     (relative, summed over the grid and the wavelengths) or ``max_orders`` is reached.
     ``ground_albedo`` (n_wl,) float32; ``progress(n, size)`` after each order; ``peak`` (a
@@ -887,7 +897,7 @@ def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G:
                          ground_diffuse_irradiance(radiance, grid), 1, [], [])
     j_ms, e_diffuse = series.source, series.ground_irradiance
     limit = max_orders if orders is None else orders
-    j_n = e_n = None
+    j_n = e_n = last_ratio = None
     for n in range(2, limit + 1):
         j_n = scattered_source(radiance, species, grid)
         if peak:
@@ -901,7 +911,11 @@ def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G:
         lg = albedo[None, :] / np.pi * ground_diffuse_irradiance(radiance, grid)  # radiance leaving the ground
         radiance = gathered_radiance(j_n, lg, M, G, grid)
         if spherical is not None and n <= spherical_orders:
-            radiance *= spherical.correction(j_n, lg, radiance)
+            ratio = spherical.correction(j_n, lg, radiance)
+            radiance *= ratio
+            last_ratio = np.minimum(ratio, SPHERICAL_TAIL_RATIO_MAX) if (spherical_tail and n >= 3) else None
+        elif last_ratio is not None:
+            radiance *= last_ratio
         e_n = ground_diffuse_irradiance(radiance, grid)
         e_diffuse = e_diffuse + e_n
         series.sizes.append(np.abs(j_n).sum(axis=(1, 2, 3), dtype=np.float64))  # per wavelength
@@ -937,7 +951,7 @@ def add_geometric_tail(series: OrderSeries) -> OrderSeries:
 def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTransmittance, *,
                               n_altitudes: int = 24, n_mu: int = 32, n_phi: int = 12, n_mus: int = 24,
                               n_steps: int = 48, orders: int | None = None, max_orders: int = 20,
-                              tolerance: float = 1e-3, spherical_orders: int = 2,
+                              tolerance: float = 1e-3, spherical_orders: int = 2, spherical_tail: bool = False,
                               spherical_probe_step_nm: float = 100.0, peak_diffuse: bool = False,
                               source_by_scattering: bool = False, progress=None) -> MultipleScatteringField:
     """Solve orders 2..N of scattering for ``profile`` (already at the solver's
@@ -948,7 +962,8 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
     ...) follow the sun angle of every point along the grid rays instead of keeping
     the independent columns: 0 none, 1 the first (exact, :func:`_first_order_spherical`),
     n > 1 also orders 2..n, corrected at probe wavelengths about
-    ``spherical_probe_step_nm`` apart (:class:`_SphericalTransport`). ``peak_diffuse``: add
+    ``spherical_probe_step_nm`` apart (:class:`_SphericalTransport`); ``spherical_tail``: the
+    orders after ``spherical_orders`` take the last order's correction. ``peak_diffuse``: add
     the cut forward peaks' small-angle scattering of every order's radiance near the horizon
     (:mod:`skymodel.render.peak_diffuse`). ``source_by_scattering``: read the source between
     the altitude nodes as sigma_s(h) times J / sigma_s (:func:`scattering_reference`), in the
@@ -985,7 +1000,8 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
                                                         spherical=spherical_orders >= 1),
                                    species, M, G, grid, profile.ground_albedo.astype(np.float32),
                                    orders=orders, max_orders=max_orders, tolerance=tolerance, spherical=spherical,
-                                   spherical_orders=spherical_orders, progress=progress,
+                                   spherical_orders=spherical_orders, spherical_tail=spherical_tail,
+                                   progress=progress,
                                    peak=PeakDiffuse(profile, medium, grid) if peak_diffuse else None)
     if orders is None:
         add_geometric_tail(series)
