@@ -118,3 +118,34 @@ def test_spherical_tail_follows_every_order_in_twilight():
     assert np.max(np.abs(three / every - 1)) > 0.007  # the tail has something to do here
     np.testing.assert_allclose(tail, every, rtol=0.005)
     np.testing.assert_array_equal(multiple(2, True), multiple(2, False))
+
+
+def test_spherical_tail_caps_the_factor_it_reuses(monkeypatch):
+    """Order 3's correction is a ratio of two transports and is huge where order 3's column
+    light is ~0 (up to 3e3 at desert 5 degrees on `reference`'s nodes); reused as it is, a
+    node there multiplies every later order's light by as much (uncapped, the tail put
+    desert 5 degrees' horizon 0.5 % above every order spherical). Here one node of order 3's
+    factor is forced to 1e6: the capped tail keeps the field within 0.1 % of the
+    unforced one in total, the uncapped one does not (it overflows)."""
+    from dataclasses import replace
+
+    import skymodel.render.multiple_scattering as ms
+    from skymodel.render.marcher import solve_sky
+
+    prof = synthetic_profile(WL, aod550=0.2)
+    s = replace(MarchSettings(table_altitudes=16, table_mu=16, table_phi=8, table_mus=24, ms_wavelength_step_nm=100,
+                              peak_aureole=False), spherical_orders=3, spherical_tail=True)
+    plain = solve_sky(prof, s).field.source.sum()
+    real = ms._SphericalTransport.correction
+
+    def forced(self, j_dir, lg, column_dir):
+        ratio = real(self, j_dir, lg, column_dir)
+        ratio[:, ratio.shape[1] // 2, 0, self.sub[0]] = 1e6  # one direction at the ground, lowest corrected sun
+        return ratio
+
+    monkeypatch.setattr(ms._SphericalTransport, "correction", forced)
+    capped = solve_sky(prof, s).field.source.sum()
+    monkeypatch.setattr(ms, "SPHERICAL_TAIL_RATIO_MAX", np.inf)
+    uncapped = solve_sky(prof, s).field.source.sum()
+    assert capped != plain and abs(capped / plain - 1) < 1e-3
+    assert not np.isfinite(uncapped) or uncapped / plain > 1.01  # 1e6 per order overflows float32
