@@ -86,19 +86,11 @@ def projected_kernel(angles_deg, peak, step_deg: float = STEP_DEG):
 
 def _fast_length(n: int) -> int:
     """The smallest 2^a 3^b 5^c >= n: an FFT length numpy's pocketfft does fast (a length with a
-    large prime factor, such as 3841 = 23 x 167 for the 6-degree cone's kernel, took it 2x longer)."""
-    best = 1 << max(int(n) - 1, 0).bit_length()
-    p5 = 1
-    while p5 < best:
-        p35 = p5
-        while p35 < best:
-            m = p35
-            while m < n:
-                m *= 2
-            best = min(best, m)
-            p35 *= 3
-        p5 *= 5
-    return best
+    large prime factor, such as 3841 = 23 x 167 for the 6-degree cone's kernel, took it 2x longer).
+    scipy.fft's own rule for real transforms; imported here, not with the module (60 ms)."""
+    from scipy.fft import next_fast_len
+
+    return int(next_fast_len(int(n), real=True))
 
 
 def _convolve_same(a, kernel):
