@@ -127,14 +127,12 @@ def test_spherical_tail_caps_the_factor_it_reuses(monkeypatch):
     desert 5 degrees' horizon 0.5 % above every order spherical). Here one node of order 3's
     factor is forced to 1e6: the capped tail keeps the field within 0.1 % of the
     unforced one in total, the uncapped one does not (it overflows)."""
-    from dataclasses import replace
-
     import skymodel.render.multiple_scattering as ms
     from skymodel.render.marcher import solve_sky
 
     prof = synthetic_profile(WL, aod550=0.2)
-    s = replace(MarchSettings(table_altitudes=16, table_mu=16, table_phi=8, table_mus=24, ms_wavelength_step_nm=100,
-                              peak_aureole=False), spherical_orders=3, spherical_tail=True)
+    s = MarchSettings(table_altitudes=16, table_mu=16, table_phi=8, table_mus=24, ms_wavelength_step_nm=100,
+                      peak_aureole=False, spherical_orders=3, spherical_tail=True)
     plain = solve_sky(prof, s).field.source.sum()
     real = ms._SphericalTransport.correction
 
