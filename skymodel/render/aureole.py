@@ -33,7 +33,7 @@ single peak scattering + this term carry the sun's energy as delta-M assumes.
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import j0
+from scipy.fft import fht, fhtoffset, ifht
 
 #: Largest angle from the sun (radians) the aureole is computed for; beyond it the
 #: twice-scattered peak light is negligible for cones up to ~20 degrees.
@@ -52,48 +52,74 @@ def peak_part(angles_deg, phase, cutoff_deg: float) -> np.ndarray:
 
 
 class PeakAureole:
-    """Hankel-transform machinery on fixed angle grids (radians, small-angle plane).
+    """Hankel-transform machinery (radians, small-angle plane) on one logarithmic angle grid.
 
-    ``n_theta`` points up to ``theta_max`` carry the peak shape; ``n_k`` wavenumbers
-    resolve it (spacing chosen so the inverse transform does not alias within
-    ``theta_max``)."""
+    The transforms are FFTLog's (:func:`scipy.fft.fht`): on ``n`` angles spaced evenly in
+    log(theta) from ``theta_min`` to ``theta_max`` (and as many wavenumbers, spaced alike)
+    each transform is one FFT. A log grid resolves what a linear one cannot: coarse dust's
+    peak holds half its energy within 0.17 degrees of the forward direction at 450 nm, and
+    its wings count out to the cone, 12 degrees. On a linear grid of 0.05 degrees (1200
+    points to 60 degrees, the earlier machinery) the unresolved core left the twice-turned
+    light 10 degrees from the sun 25 % low: on a medium of that peak alone the aureole 10
+    degrees from a sun at 20 degrees was 8 % below the Monte Carlo tracer, the desert sky
+    there 1.4 % (notebooks/aureole_transform). 4096 angles from 1e-8 to 1e3 rad give the
+    correction table within 2e-3 of the phase function of one on 16384 angles.
 
-    def __init__(self, theta_max: float = THETA_MAX_RAD, n_theta: int = 1200, n_k: int = 1600):
-        self.theta = np.linspace(0.0, theta_max, n_theta)
-        dtheta = self.theta[1] - self.theta[0]
-        w = 2.0 * np.pi * self.theta * dtheta  # ring areas (trapezoid-like; the origin has no area)
-        w[-1] *= 0.5
-        self.ring = w
-        # wavenumbers crowded toward 0 (k = k_max u^2, u uniform): the transforms of the
-        # broad many-times-convolved peaks live at small k, the narrow single peak needs
-        # k_max; the largest spacing 2 k_max / n_k keeps aliasing beyond theta_max
-        k_max = np.pi / dtheta
-        self.k = k_max * np.linspace(0.0, 1.0, n_k) ** 2
-        dk = np.gradient(self.k)
-        dk[0] *= 0.5
-        dk[-1] *= 0.5
-        self.k_weight = self.k * dk / (2.0 * np.pi)
-        self.forward = j0(np.outer(self.theta, self.k)) * w[:, None]  # (n_theta, n_k)
+    The grid runs from far inside the narrowest tabulated peak to far beyond any spread
+    the table keeps, so that the periodic continuation the FFT assumes sees next to
+    nothing at either end; the transforms ring within about four decades of its small
+    end, so angles below ``theta_floor`` (1e-4 rad, 0.006 degrees, far inside the finest
+    tabulated angle step) read the value there.
+
+    ``theta`` (n,) are the angles and ``ring`` their areas in the small-angle plane
+    (2 pi theta^2 dln: sums over the grid are integrals over the plane)."""
+
+    def __init__(self, n: int = 4096, theta_min: float = 1e-8, theta_max: float = 1e3):
+        ln = np.linspace(np.log(theta_min), np.log(theta_max), n)
+        self.dln = float(ln[1] - ln[0])
+        self.offset = float(fhtoffset(self.dln, mu=0.0))  # the low-ringing pairing of the grids
+        self.theta = np.exp(ln)
+        # FFTLog's wavenumbers: k_j theta_c = exp(offset) exp((j - j_c) dln), theta_c the centre
+        self.k = np.exp(self.offset + ln - (ln[0] + ln[-1]))
+        self.ring = 2.0 * np.pi * self.theta**2 * self.dln
+        self.theta_floor = theta_min * 1e4
 
     def shape_on_grid(self, angles_deg, peak) -> np.ndarray:
-        """Peak values (A, W) on the table's angles -> normalised shape q (n_theta, W)
-        on this grid (integral over the small-angle plane = 1; zero where the peak is)."""
+        """Peak values (A, W) on the table's angles, linear in angle as the medium reads
+        them -> normalised shape q (n, W) on this grid (integral over the small-angle plane
+        = 1; zero where the peak is)."""
         th = np.radians(np.asarray(angles_deg, float))
         q = np.stack([np.interp(self.theta, th, peak[:, i], right=0.0) for i in range(peak.shape[1])], axis=1)
         norm = self.ring @ q
         return np.where(norm > 0, q / np.where(norm > 0, norm, 1.0), 0.0)
 
+    def transform(self, q) -> np.ndarray:
+        """Hankel transform of a normalised shape q (n, W): Q(k) = 2 pi int q J0(k theta)
+        theta dtheta on ``self.k``, (n, W), Q(0) = 1. |Q| <= 1 for a density; what the
+        FFT's ringing puts beyond that is clipped."""
+        a = fht(np.ascontiguousarray((q * self.theta[:, None]).T), self.dln, mu=0.0, offset=self.offset)
+        return np.clip(2.0 * np.pi * a.T / self.k[:, None], -1.0, 1.0)
+
+    def _inverse(self, ak, theta_out) -> np.ndarray:
+        """Inverse transform of ak (n, M) (radiance per unit irradiance in k space) at
+        ``theta_out`` (radians): (len(theta_out), M), 0 beyond ``THETA_MAX_RAD``."""
+        b = ifht(np.ascontiguousarray((ak * (self.k / (2.0 * np.pi))[:, None]).T), self.dln, mu=0.0,
+                 offset=self.offset)
+        c = b.T / self.theta[:, None]
+        t = np.clip(np.asarray(theta_out, float), self.theta_floor, self.theta[-1])
+        i = np.clip(np.searchsorted(self.theta, t) - 1, 0, self.theta.size - 2)
+        w = ((t - self.theta[i]) / (self.theta[i + 1] - self.theta[i]))[:, None]
+        out = c[i] * (1.0 - w) + c[i + 1] * w
+        out[np.asarray(theta_out) > THETA_MAX_RAD] = 0.0
+        return np.maximum(out, 0.0)
+
     def multiple(self, q, tau_peak, theta_out) -> np.ndarray:
         """Radiance per unit irradiance (sr^-1) at angles ``theta_out`` (radians) from the
-        sun of light scattered two or more times in a peak of shape ``q`` (n_theta, W)
+        sun of light scattered two or more times in a peak of shape ``q`` (n, W)
         with peak optical depth ``tau_peak`` (W,): (len(theta_out), W)."""
         tau = np.asarray(tau_peak, float)[None, :]
-        qk = self.forward.T @ q  # (n_k, W), Q(0) = 1
-        ak = np.exp(-tau) * (np.expm1(tau * qk) - tau * qk)
-        inverse = j0(np.outer(np.asarray(theta_out, float), self.k)) * self.k_weight  # (n_out, n_k)
-        out = inverse @ ak
-        out[np.asarray(theta_out) > self.theta[-1]] = 0.0
-        return np.maximum(out, 0.0)
+        qk = self.transform(q)
+        return self._inverse(np.exp(-tau) * (np.expm1(tau * qk) - tau * qk), theta_out)
 
     def correction_table(self, q, tau_grid, theta_out) -> np.ndarray:
         """Peak light that the marcher's single scattering leaves out, per unit peak
@@ -109,13 +135,13 @@ class PeakAureole:
         one line) the integral of this over the ray is the Poisson sum over m >= 1
         scatterings of the whole line. The n = 0 term, exp(-tau) q, is the direct beam
         scattered once into the peak, which the marcher's single scattering holds; the
-        rest is, in Hankel space, exp(-tau) (exp(tau Q) - 1 - tau Q) / tau."""
-        tau = np.asarray(tau_grid, float)[None, :, None]
-        qk = (self.forward.T @ q)[:, None, :]  # (n_k, 1, W)
-        x = tau * qk
-        safe = np.where(tau > 0, tau, 1.0)
-        ck = np.where(tau > 0, np.exp(-tau) * (np.expm1(x) - x) / safe, 0.0)  # (n_k, n_tau, W)
-        inverse = j0(np.outer(np.asarray(theta_out, float), self.k)) * self.k_weight  # (n_out, n_k)
-        out = (inverse @ ck.reshape(self.k.size, -1)).reshape(len(theta_out), tau.shape[1], -1)
-        out[np.asarray(theta_out) > self.theta[-1]] = 0.0
-        return np.maximum(out, 0.0)
+        rest is, in Hankel space, exp(-tau) (exp(tau Q) - 1 - tau Q) / tau. One tau node
+        at a time (memory ~ n * W * 8 B * 4)."""
+        taus = np.asarray(tau_grid, float)
+        qk = self.transform(q)  # (n, W)
+        out = np.zeros((len(theta_out), taus.size, qk.shape[1]))
+        for j, tau in enumerate(taus):
+            if tau > 0:
+                x = tau * qk
+                out[:, j] = self._inverse(np.exp(-tau) * (np.expm1(x) - x) / tau, theta_out)
+        return out
