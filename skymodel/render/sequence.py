@@ -35,7 +35,10 @@ from skymodel.render.sky import SkyImage, check_render_arguments, render_sky, re
 __all__ = ["SolutionCache", "render_frame", "render_frame_reduced", "SOLUTION_FORMAT"]
 
 #: Version of the pickled :class:`SkySolution` layout; part of every cache file's name.
-SOLUTION_FORMAT = 4  # 4: the medium carries its delta-M cone (FactoredMedium.cutoff_deg)
+#: Bump it with every change to what a solve computes for the same profile and settings (the
+#: key covers only those), so that no cache serves a solution the code would no longer make.
+SOLUTION_FORMAT = 5  # 4: the medium carries its delta-M cone (FactoredMedium.cutoff_deg); 5: the
+#                      peak aureole's FFTLog table (60acfad), the altitude nodes' ground split
 
 
 class SolutionCache:
