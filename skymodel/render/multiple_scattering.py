@@ -117,13 +117,14 @@ def table_altitudes(medium: FactoredMedium, n: int, top: float, weight_tau: floa
     for a 1.2 km aerosol layer with the plain grid).
 
     The lowest interval is then split into ``ground_split`` (default :data:`GROUND_SPLIT`)
-    equal ones (for n >= 8; the count stays n). Near the ground the source of grazing directions changes within tens of
-    metres: from a point h above the ground the ground a degree below the horizon lies 57 h
-    away, one optical depth off at h ~ 60 m in desert dust, and the cut forward peaks turn
-    that bright ground light into the sky just above the horizon
-    (:mod:`skymodel.render.peak_diffuse`). Read linearly between nodes 0 and 163 m (desert
-    AOD 0.5, 24 nodes), that source put the horizon 90-120 degrees from a sun at 60 degrees
-    1-1.5 % above the Monte Carlo truth; split in three it lands within 0.15 % of 64 nodes
+    equal ones (for n >= 8; the count stays n). Near the ground the source of grazing
+    directions changes within tens of metres: from a point h above the ground the ground a
+    degree below the horizon lies 57 h away, one optical depth off at h ~ 60-70 m in the
+    desert's and the rural site's haze (550 nm), and the cut forward peaks turn that bright
+    ground light into the sky just above the horizon (:mod:`skymodel.render.peak_diffuse`).
+    Read linearly between the nodes at 0 and 120 m (desert AOD 0.5, 24 nodes), that source
+    put the horizon 90-180 degrees in azimuth from a sun at 60 degrees 1-1.5 % above the
+    Monte Carlo truth; split in three it lands within 0.15 % of 64 nodes
     (notebooks/ground_nodes)."""
     split = (GROUND_SPLIT if ground_split is None else int(ground_split)) if n >= 8 else 1
     fine = altitude_grid(2001, top, stretch=3.0)
