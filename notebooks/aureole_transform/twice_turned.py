@@ -40,10 +40,13 @@ def linear_grid(n_theta=1200, n_k=1600, theta_max=np.radians(60.0)):
     return (j0(np.outer(out, k)) * k * dk / (2 * np.pi)) @ qk**2
 
 
-def log_grid():
+def log_grid(tau=1e-4):
+    """q*q from today's machinery: its n >= 2 sum at a small peak optical depth is
+    exp(-tau) tau^2 / 2 q*q (the n = 3 term adds tau / 3 of it)."""
     m = PeakAureole()
-    qk = m.transform(m.shape_on_grid(ang, peak))
-    return m._inverse(qk**2, out)
+    q = m.shape_on_grid(ang, peak)
+    taus = np.full(peak.shape[1], tau)
+    return m.multiple(q, taus, out) / (np.exp(-tau) * tau * tau / 2)
 
 
 def sampled(n=20_000_000, seed=1):
