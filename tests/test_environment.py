@@ -53,6 +53,17 @@ def test_render_then_cache_hit(atmosphere, tmp_path):
     assert other.info["cache_key"] != env.info["cache_key"]
 
 
+def test_other_code_misses_the_cache(atmosphere, tmp_path, monkeypatch):
+    """A sky cached by other code (another package tag: another file of skymodel's sources or
+    data) is not served: its key differs, so the same inputs render again."""
+    from skymodel.render import provenance
+
+    _, first = environment.render_environment(atmosphere, 20.0, 135.0, width=16, cache_dir=tmp_path)
+    monkeypatch.setattr(provenance, "package_tag", lambda: "0123456789")
+    _, other = environment.render_environment(atmosphere, 20.0, 135.0, width=16, cache_dir=tmp_path)
+    assert not other.cache_hit and other.info["cache_key"] != first.info["cache_key"]
+
+
 def test_another_model_comes_through_model_radiance(atmosphere, tmp_path):
     def flat(camera, wavelengths_nm, include_sun):
         dirs, valid = camera.directions()

@@ -73,6 +73,23 @@ def test_disk_cache_round_trip_and_a_corrupt_file_is_solved_again(tmp_path):
     assert SolutionCache(tmp_path).get(prof, SETTINGS) is not None  # rewritten, readable
 
 
+def test_a_solution_stored_by_other_code_is_not_read(tmp_path, monkeypatch):
+    """The cache file's name carries skymodel.render.provenance.package_tag: after any change to
+    the package's code or data (the optics key, profile and settings, would not see one) the
+    old file is left alone and the sky solved again."""
+    from skymodel.render import provenance
+
+    prof = _profile()
+    first = SolutionCache(tmp_path)
+    sol = first.get(prof, SETTINGS)
+    assert provenance.package_tag() in first.path(sol.key).name
+    monkeypatch.setattr(provenance, "package_tag", lambda: "0123456789")
+    other = SolutionCache(tmp_path)
+    other.get(prof, SETTINGS)
+    assert other.stats["disk_hits"] == 0 and other.stats["solves"] == 1
+    assert len(list(tmp_path.glob("solution-v*.pickle"))) == 2
+
+
 def test_reduced_frames_share_the_solve_and_bad_input_is_refused_before_it():
     cam = make_camera("equirectangular", 16, 8, n_wavelengths=WL.size)
     prof = _profile()

@@ -33,7 +33,8 @@ Exposure
 Cache
     :func:`render_environment` writes ``sky-<key>.exr`` and ``sky-<key>.json`` (the lamp and
     exposure numbers) into a cache folder, ``<key>`` being a hash of every input that changes
-    the image (:func:`cache_key`); a second call with the same inputs reads them back. The
+    the image and of the package's code and data (:func:`cache_key`,
+    :func:`skymodel.render.provenance.package_tag`); a second call with the same inputs reads them back. The
     JSON records the EXR's size in bytes and SHA-256; an entry whose EXR does not match them
     (truncated, overwritten, damaged on disk) or whose JSON cannot be read is deleted and
     rendered again (:func:`verify_cached`). :func:`clear_cache` empties a cache folder.
@@ -56,7 +57,7 @@ import numpy as np
 import skymodel
 from skymodel import colorimetry
 from skymodel import sun as sun_module
-from skymodel.render import image_io
+from skymodel.render import image_io, provenance
 from skymodel.render import sky as render_sky
 from skymodel.render.cameras import make_camera
 from skymodel.render.exposure import LUMA_709, display_exposure
@@ -158,6 +159,7 @@ def cache_key(atmosphere, sun_elevation_deg: float, sun_azimuth_deg: float, eart
         "format": CACHE_FORMAT,
         "kind": kind,
         "core_version": getattr(skymodel, "__version__", "?"),
+        "package": provenance.package_tag(),  # the code and data that render it (skymodel.render.provenance)
         "atmosphere": _atmosphere_dict(atmosphere),
         "sun_elevation_deg": round(sun_elevation_deg, 6),
         "sun_azimuth_deg": round(sun_azimuth_deg, 6),
@@ -303,7 +305,7 @@ def _read_cached(exr: Path, meta: Path, progress) -> EnvironmentMap | None:
 
 #: The files a cache folder holds: :func:`render_environment`'s entries and their
 #: temporaries, and in :data:`SOLUTIONS_FOLDER` the multiple-scattering solutions that
-#: :func:`solution_cache` stores (``SolutionCache.path``: ``solution-v<format>-<version>-<key>.pickle``)
+#: :func:`solution_cache` stores (``SolutionCache.path``: ``solution-v<format>-<version>-<package tag>-<key>.pickle``)
 #: and their temporaries (``<that name>.<random>.tmp``); a test checks the names still match.
 CACHE_PATTERNS = ("sky-*.exr", "sky-*.json", ".sky-*.tmp")
 #: The sub-folder of a cache folder where :func:`solution_cache` keeps solutions on disk.

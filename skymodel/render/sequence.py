@@ -27,6 +27,7 @@ import time
 from collections import OrderedDict
 from pathlib import Path
 
+from skymodel.render import provenance
 from skymodel.render.cameras import Camera
 from skymodel.render.marcher import SkySolution, optics_key, solve_sky
 from skymodel.render.quality import quality_settings
@@ -34,9 +35,10 @@ from skymodel.render.sky import SkyImage, check_render_arguments, render_sky, re
 
 __all__ = ["SolutionCache", "render_frame", "render_frame_reduced", "SOLUTION_FORMAT"]
 
-#: Version of the pickled :class:`SkySolution` layout; part of every cache file's name.
-#: Bump it with every change to what a solve computes for the same profile and settings (the
-#: key covers only those), so that no cache serves a solution the code would no longer make.
+#: Version of the pickled :class:`SkySolution` layout; part of every cache file's name, with the
+#: package's version and :func:`skymodel.render.provenance.package_tag` (any change to the code or
+#: data that makes a solve gives a new name, so no cache serves a solution the code would no
+#: longer make; the key, :func:`optics_key`, covers only the profile and the settings).
 SOLUTION_FORMAT = 5  # 4: the medium carries its delta-M cone (FactoredMedium.cutoff_deg); 5: the
 #                      peak aureole's FFTLog table (60acfad), the altitude nodes' ground split
 
@@ -62,7 +64,7 @@ class SolutionCache:
         import skymodel
 
         version = getattr(skymodel, "__version__", "0")
-        return self.folder / f"solution-v{SOLUTION_FORMAT}-{version}-{key[:32]}.pickle"
+        return self.folder / f"solution-v{SOLUTION_FORMAT}-{version}-{provenance.package_tag()}-{key[:32]}.pickle"
 
     def _load(self, key: str):
         path = self.path(key)
