@@ -343,13 +343,9 @@ def _forward_peak_cut(prof, cutoff_deg):
     """``prof`` with each aerosol phase function's forward peak inside ``cutoff_deg`` cut
     away (delta-M: p* = min(p, p(cutoff)) renormalised, aerosol scattering x (1 - f)), for
     the Monte Carlo reference: light scattered within a few degrees goes on as unscattered."""
-    from dataclasses import replace
+    from skymodel.validation.delta_m_medium import delta_m_profile
 
-    from skymodel.render.medium import truncate_forward_peak
-
-    f, p_star = truncate_forward_peak(prof.aerosol_phase_angles_deg, prof.aerosol_phase, cutoff_deg)
-    return replace(prof, aerosol_phase=p_star,
-                   aerosol_scattering_by_regime=prof.aerosol_scattering_by_regime * (1.0 - f[:, None, :]))
+    return delta_m_profile(prof, cutoff_deg)
 
 
 @pytest.mark.slow

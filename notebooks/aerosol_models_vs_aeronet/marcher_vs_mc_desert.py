@@ -15,11 +15,10 @@ against two references:
   min(p, p(3 deg)) renormalised, scattering x (1 - f)), which converges; within 4 se + 2 %.
 """
 import sys, time
-from dataclasses import replace
 import numpy as np
 from skymodel import Atmosphere
 from skymodel.render.marcher import SkyMarcher, MarchSettings
-from skymodel.render.medium import truncate_forward_peak
+from skymodel.validation.delta_m_medium import delta_m_profile
 from skymodel.validation.montecarlo import trace_radiance
 from skymodel.render.rays import direction_from_angles
 REAL_VIEWS = ((0.0, 0.0), (45.0, 0.0), (45.0, 180.0), (80.0, 0.0), (80.0, 180.0), (88.0, 180.0))
@@ -27,9 +26,7 @@ d = direction_from_angles(np.array([v[0] for v in REAL_VIEWS]), np.array([180.0 
 for aod, n in ((0.27, 4000), (None, 40000)):
     t = time.time()
     prof = Atmosphere(location="desert", month=6, aod550=aod).optical_profile((450.0, 650.0))
-    f, p_star = truncate_forward_peak(prof.aerosol_phase_angles_deg, prof.aerosol_phase, 3.0)
-    cut = replace(prof, aerosol_phase=p_star,
-                  aerosol_scattering_by_regime=prof.aerosol_scattering_by_regime * (1.0 - f[:, None, :]))
+    cut = delta_m_profile(prof, 3.0)
     r = SkyMarcher(prof, 20.0, 180.0, 0.0, MarchSettings(exact=True)).radiance(d).radiance
     for name, p, paths in (("raw", prof, n), ("cut 3", cut, 20000)):
         mc = trace_radiance(p, d, 20.0, 180.0, n_paths=paths, seed=31)

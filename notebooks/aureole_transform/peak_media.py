@@ -25,6 +25,7 @@ from skymodel.render.aureole import peak_part  # noqa: E402
 from skymodel.render.marcher import SkyMarcher  # noqa: E402
 from skymodel.render.medium import delta_m_cone_deg, truncate_forward_peak  # noqa: E402
 from skymodel.render.quality import QUALITIES  # noqa: E402
+from skymodel.validation.delta_m_medium import delta_m_profile  # noqa: E402
 from skymodel.validation.montecarlo import trace_radiance  # noqa: E402
 
 OUT = os.environ.get("TRUTH_MISSES_OUT", ".cache/truth_misses")
@@ -55,9 +56,7 @@ def modify(p):
 
 
 def delta_m(p):
-    cone = delta_m_cone_deg(p, fin.delta_m_cutoff_deg, fin.delta_m_mild_cutoff_deg)
-    f, ps = truncate_forward_peak(p.aerosol_phase_angles_deg, p.aerosol_phase, cone)
-    return p.with_(aerosol_phase=ps, aerosol_scattering_by_regime=p.aerosol_scattering_by_regime * (1 - f[:, None, :]))
+    return delta_m_profile(p, delta_m_cone_deg(p, fin.delta_m_cutoff_deg, fin.delta_m_mild_cutoff_deg))
 
 
 res = {}

@@ -9,16 +9,16 @@ from dataclasses import replace
 sys.path[:0] = ["benchmarks"]
 import bench_truth as bt
 import skymodel.render.multiple_scattering as ms
-from skymodel.render.medium import factor_medium, truncate_forward_peak
+from skymodel.render.medium import factor_medium
 from skymodel.render.sun_transmittance import SunTransmittance
 from skymodel.render.quality import QUALITIES
+from skymodel.validation.delta_m_medium import delta_m_profile
 from skymodel.validation.montecarlo import trace_radiance
 from skymodel.validation.truth import view_directions
 s = replace(QUALITIES["final"].settings, **bt._parse_variant(sys.argv[1] if len(sys.argv) > 1 else ""))
 n_paths = int(sys.argv[2]) if len(sys.argv) > 2 else 100000
 prof = bt.atmosphere("rural").optical_profile(list(bt.MC_WAVELENGTHS_NM))
-f, p_star = truncate_forward_peak(prof.aerosol_phase_angles_deg, prof.aerosol_phase, 12.0)
-prof = prof.with_(aerosol_phase=p_star, aerosol_scattering_by_regime=prof.aerosol_scattering_by_regime * (1 - f[:, None, :]))
+prof = delta_m_profile(prof, 12.0)
 prof = replace(prof, solar_irradiance=np.ones(3))
 med = factor_medium(prof, 12.0)
 st = SunTransmittance([med.extinction, med.extinction_scaled], prof.planet_radius_m, prof.top_altitude_m,

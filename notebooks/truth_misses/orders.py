@@ -37,8 +37,9 @@ sys.path[:0] = ["benchmarks"]
 import bench_truth as bt  # noqa: E402
 from skymodel.optics.atmosphere import Atmosphere  # noqa: E402
 from skymodel.render.marcher import SkyMarcher  # noqa: E402
-from skymodel.render.medium import delta_m_cone_deg, truncate_forward_peak  # noqa: E402
+from skymodel.render.medium import delta_m_cone_deg  # noqa: E402
 from skymodel.render.quality import QUALITIES  # noqa: E402
+from skymodel.validation.delta_m_medium import delta_m_profile  # noqa: E402
 from skymodel.validation.montecarlo import trace_radiance  # noqa: E402
 
 OUT = os.environ.get("TRUTH_MISSES_OUT", ".cache/truth_misses")
@@ -66,9 +67,7 @@ def delta_m(prof):
         return prof
     fin = QUALITIES["final"].settings
     cone = delta_m_cone_deg(prof, fin.delta_m_cutoff_deg, fin.delta_m_mild_cutoff_deg)  # final's cone for this sky
-    f, p_star = truncate_forward_peak(prof.aerosol_phase_angles_deg, prof.aerosol_phase, cone)
-    return prof.with_(aerosol_phase=p_star, aerosol_scattering_by_regime=prof.aerosol_scattering_by_regime
-                      * (1.0 - f[:, None, :]))
+    return delta_m_profile(prof, cone)
 
 
 prof_mc = delta_m(atm.optical_profile(list(bt.MC_WAVELENGTHS_NM)))

@@ -37,6 +37,7 @@ from validate_montecarlo import CONVERGED  # noqa: E402
 from skymodel import Atmosphere  # noqa: E402
 from skymodel.render.marcher import SkyMarcher  # noqa: E402
 from skymodel.render.medium import truncate_forward_peak  # noqa: E402
+from skymodel.validation.delta_m_medium import delta_m_profile  # noqa: E402
 from skymodel.validation.montecarlo import trace_radiance  # noqa: E402
 from skymodel.render.rays import direction_from_angles  # noqa: E402
 
@@ -53,10 +54,8 @@ SOLVER_ROWS = (("converged settings", {}), ("48 sun nodes (24)", dict(table_mus=
 
 def media():
     prof = Atmosphere(location="desert", month=6).optical_profile([WAVELENGTH_NM])
-    f, capped = truncate_forward_peak(prof.aerosol_phase_angles_deg, prof.aerosol_phase, CONVERGED.delta_m_cutoff_deg)
-    no_peak = replace(prof, aerosol_scattering_by_regime=prof.aerosol_scattering_by_regime * (1.0 - f[:, None, :]),
-                      aerosol_phase=capped)
-    return prof, no_peak, f
+    f, _ = truncate_forward_peak(prof.aerosol_phase_angles_deg, prof.aerosol_phase, CONVERGED.delta_m_cutoff_deg)
+    return prof, delta_m_profile(prof, CONVERGED.delta_m_cutoff_deg), f
 
 
 def main(argv=None):
