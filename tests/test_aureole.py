@@ -9,6 +9,7 @@ import pytest
 from skymodel.numerics import trapezoid
 from skymodel.render.aureole import PeakAureole, peak_part
 from skymodel.render.medium import truncate_forward_peak
+from skymodel.validation.peak_sampling import sampled_twice_turned
 
 
 @pytest.fixture(scope="module")
@@ -53,24 +54,8 @@ def test_twice_turned_light_of_a_coarse_dust_peak_matches_sampled_deflections(ma
     tau = 1e-3
     out = np.radians(np.array([3.0, 5.0, 8.0, 10.0]))
     twice = machine.multiple(q, np.array([tau]), out)[:, 0] / (np.exp(-tau) * tau * tau / 2)
-    # the same convolution sampled: radius from the cumulative peak on a fine grid
-    rng = np.random.default_rng(5)
-    fine = np.linspace(0.0, np.radians(12.0), 200001)
-    density = np.interp(fine, np.radians(ang), peak[:, 0], right=0.0) * fine
-    cdf = np.cumsum(density)
-    cdf /= cdf[-1]
-    n = 4_000_000
-
-    def deflections():
-        r = np.interp(rng.random(n), cdf, fine)
-        a = rng.random(n) * 2 * np.pi
-        return r * np.cos(a), r * np.sin(a)
-
-    (x1, y1), (x2, y2) = deflections(), deflections()
-    total = np.hypot(x1 + x2, y1 + y2)
-    half = np.radians(0.25)
-    counts = np.array([np.count_nonzero(np.abs(total - o) < half) for o in out])
-    sampled = counts / n / (2 * np.pi * out * 2 * half)
+    # the same convolution sampled (skymodel.validation.peak_sampling)
+    sampled, counts = sampled_twice_turned(ang, peak[:, 0], 12.0, out, 4_000_000, np.random.default_rng(5))
     se = np.sqrt(counts) / counts
     np.testing.assert_allclose(twice, sampled, rtol=0.02 + 3 * se.max())
 

@@ -3,7 +3,7 @@ ways: the earlier transform (direct quadrature on a linear angle grid of 0.05 de
 1600 wavenumbers crowded toward 0, as skymodel.render.aureole had it before 60acfad), today's
 FFTLog transform on a log grid (skymodel.render.aureole.PeakAureole), and the same convolution
 sampled (two deflections drawn from the peak, linear in angle as the medium reads it, added as
-vectors in the plane, counted in rings of +-0.25 degrees).
+vectors in the plane, counted in rings of +-0.25 degrees; skymodel.validation.peak_sampling).
 
 usage: twice_turned.py [location] [aod550] [cone_deg]      (default desert 0.5 12)
 """
@@ -14,6 +14,7 @@ from scipy.special import j0
 
 from skymodel import Atmosphere
 from skymodel.render.aureole import PeakAureole, peak_part
+from skymodel.validation.peak_sampling import sampled_twice_turned
 
 loc = sys.argv[1] if len(sys.argv) > 1 else "desert"
 aod = float(sys.argv[2]) if len(sys.argv) > 2 else 0.5
@@ -51,23 +52,8 @@ def log_grid(tau=1e-4):
 
 def sampled(n=20_000_000, seed=1):
     rng = np.random.default_rng(seed)
-    fine = np.linspace(0.0, np.radians(cone), 400001)
-    res = []
-    for w in range(peak.shape[1]):
-        cdf = np.cumsum(np.interp(fine, np.radians(ang), peak[:, w], right=0.0) * fine)
-        cdf /= cdf[-1]
-
-        def draw():
-            r = np.interp(rng.random(n), cdf, fine)
-            a = rng.random(n) * 2 * np.pi
-            return r * np.cos(a), r * np.sin(a)
-
-        (x1, y1), (x2, y2) = draw(), draw()
-        s = np.hypot(x1 + x2, y1 + y2)
-        half = np.radians(0.25)
-        c = np.array([np.count_nonzero(np.abs(s - o) < half) for o in out])
-        res.append(c / n / (2 * np.pi * np.maximum(out, half) * 2 * half))
-    return np.stack(res, 1)
+    return np.stack([sampled_twice_turned(ang, peak[:, w], cone, out, n, rng, n_fine=400001)[0]
+                     for w in range(peak.shape[1])], 1)
 
 
 lin, log, mc = linear_grid(), log_grid(), sampled()
