@@ -27,6 +27,7 @@ profile, and grow: a re-run adds paths where the target is not met yet. Runs cop
 and writes it to the cache).
 
     nice -n 5 python benchmarks/bench_truth.py mc --scenes all           # trace (cached, resumable)
+    OMP_NUM_THREADS=1 python benchmarks/bench_truth.py mc --scenes desert:0 --workers 16   # a process a core
     nice -n 5 python benchmarks/bench_truth.py march --scenes all        # the presets (cached)
     python benchmarks/bench_truth.py report --write-docs                 # docs/accuracy.md + img/
     python benchmarks/bench_truth.py pilot --scenes desert:20            # per-path noise and time
@@ -209,7 +210,39 @@ def plan_round(n, more, todo, seconds_per_path, left_s):
             for g in np.unique(exp[todo])[::-1]]
 
 
-def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=print):
+#: What the worker processes of :func:`run_mc` trace with (set before the pool forks).
+_WORK = {}
+
+
+def _trace_chunk(task):
+    """One worker's share of a batch: (rows, paths, seed) -> (rows, paths, seed, MCResult)."""
+    rows, n, seed = task
+    w = _WORK
+    res = trace_radiance(w["prof"], w["dirs"][rows], w["elev"], SUN_AZIMUTH, n_paths=n, seed=seed,
+                         sun_guide=w["guide"], estimator=w["estimator"])
+    return rows, n, seed, res
+
+
+def split_batches(batches, workers, seed):
+    """Each batch (rows, paths) as ``workers`` chunks of paths (in thousands) with their own
+    seeds from ``seed`` on, so a round keeps every worker busy: [(rows, paths, seed)]."""
+    tasks = []
+    for rows, n in batches:
+        k = max(1, min(workers, n // 1000))
+        per = -(-n // (k * 1000)) * 1000
+        for _ in range(k):
+            tasks.append((rows, per, seed))
+            seed += 1
+    return tasks
+
+
+def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers=1):
+    """Trace ``scene`` until every direction's relative standard error is ``target_se`` (or
+    it has ``max_paths`` paths, or ``budget_s`` wall-clock seconds have passed), saving after
+    every batch. ``workers`` > 1 splits each round's batches into chunks with their own
+    seeds over that many processes (forked; each process single-threaded numpy); the run's
+    ``seconds`` counts the processes' tracing time (CPU-seconds), its plan the wall-clock."""
+    log = log or (lambda line: print(line, flush=True))
     prof, mc = scene.load_mc()
     nd, nw = scene.dirs.shape[0], prof.n_wavelengths
     if mc is None:
@@ -225,27 +258,39 @@ def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=print):
         _merge(mc, rows, res, pilot_paths, seed)
         scene.save_mc(prof, mc)
         seed += 1
-    while True:
-        rel = mc["se"] / mc["mean"]
-        need = paths_for_noise(rel * np.sqrt(mc["n"])[:, None], 1, target_se, min_paths=0, max_paths=max_paths)
-        more = need - mc["n"]
-        todo = more > 0.1 * mc["n"]
-        if not np.any(todo) or time.perf_counter() - t0 > budget_s:
-            break
-        per_path = float(mc["seconds"]) / max(1.0, float(mc["n"].sum()) * nw)
-        batches = plan_round(mc["n"], more, todo, per_path * nw, budget_s - (time.perf_counter() - t0))
-        if not batches:
-            break
-        for rows, n in batches:
-            res = trace_radiance(prof, scene.dirs[rows], scene.elev, SUN_AZIMUTH, n_paths=n, seed=seed,
-                                 sun_guide=guide, estimator=scene.estimator)
-            _merge(mc, rows, res, n, seed)
-            scene.save_mc(prof, mc)
-            log(f"  {scene.name}: {rows.size} directions +{n} paths (seed {seed}, {res.time_s:.0f} s); "
-                f"worst rel se now {100 * np.max(mc['se'] / mc['mean']):.2f} %")
-            seed += 1
-            if time.perf_counter() - t0 > budget_s:
+    _WORK.update(prof=prof, dirs=scene.dirs, elev=scene.elev, guide=guide, estimator=scene.estimator)
+    pool = None
+    if workers > 1:
+        import multiprocessing
+
+        pool = multiprocessing.get_context("fork").Pool(workers)
+    try:
+        while True:
+            rel = mc["se"] / mc["mean"]
+            need = paths_for_noise(rel * np.sqrt(mc["n"])[:, None], 1, target_se, min_paths=0, max_paths=max_paths)
+            more = need - mc["n"]
+            todo = more > 0.1 * mc["n"]
+            if not np.any(todo) or time.perf_counter() - t0 > budget_s:
                 break
+            per_path = float(mc["seconds"]) / max(1.0, float(mc["n"].sum()) * nw)
+            left = (budget_s - (time.perf_counter() - t0)) * max(1, workers)
+            batches = plan_round(mc["n"], more, todo, per_path * nw, left)
+            if not batches:
+                break
+            tasks = split_batches(batches, workers, seed) if pool else [(r, n, seed + i)
+                                                                         for i, (r, n) in enumerate(batches)]
+            seed = max(t[2] for t in tasks) + 1
+            done = pool.imap_unordered(_trace_chunk, tasks) if pool else map(_trace_chunk, tasks)
+            for rows, n, s, res in done:
+                _merge(mc, rows, res, n, s)
+                scene.save_mc(prof, mc)
+                log(f"  {scene.name}: {rows.size} directions +{n} paths (seed {s}, {res.time_s:.0f} s); "
+                    f"worst rel se now {100 * np.max(mc['se'] / mc['mean']):.2f} %")
+                if pool is None and time.perf_counter() - t0 > budget_s:
+                    break
+    finally:
+        if pool is not None:
+            pool.terminate()
     return prof, mc
 
 
@@ -478,6 +523,8 @@ def main(argv=None):
     ap.add_argument("--target-se", type=float, default=0.005, help="relative MC standard error per direction")
     ap.add_argument("--max-paths", type=int, default=400_000, help="paths per direction and wavelength, at most")
     ap.add_argument("--pilot-paths", type=int, default=3000)
+    ap.add_argument("--workers", type=int, default=1, help="mc: processes tracing each round's batches in chunks "
+                    "with their own seeds (one per core; set OMP_NUM_THREADS=1)")
     ap.add_argument("--budget-min", type=float, default=60.0, help="MC minutes per scene, at most (then stop)")
     ap.add_argument("--qualities", default=",".join(QUALITY_NAMES))
     ap.add_argument("--write-docs", action="store_true", help="write docs/accuracy.md's section and its plot")
@@ -497,7 +544,7 @@ def main(argv=None):
     elif a.what == "mc":
         for sc in scenes:
             t = time.perf_counter()
-            _, mc = run_mc(sc, a.target_se, a.max_paths, a.pilot_paths, 60.0 * a.budget_min)
+            _, mc = run_mc(sc, a.target_se, a.max_paths, a.pilot_paths, 60.0 * a.budget_min, workers=a.workers)
             rel = mc["se"] / mc["mean"]
             print(f"{sc.name}: {time.perf_counter() - t:.0f} s; paths {mc['n'].min()}..{mc['n'].max()}; rel se "
                   f"median {100 * np.median(rel):.2f} % max {100 * rel.max():.2f} %", flush=True)
