@@ -560,8 +560,8 @@ def main(argv=None):
         mc_s = sum(r["mc_seconds"] for r in rows if r["quality"] == QUALITY_NAMES[0])
         head = (f"Measured {time.strftime('%Y-%m-%d', time.gmtime())} on {machine()}; renderer revision "
                 f"{git_revision()} (sources {sources_hash()}); `python benchmarks/bench_truth.py report --write-docs` "
-                f"from the cached runs (MC: {mc_s / 60:.0f} min of tracing in all; load average "
-                f"{os.getloadavg()[0]:.1f} now, 4–6 during the runs).")
+                f"from the cached runs (MC: {mc_s / 60:.0f} core-minutes of tracing in all, where: the text above; "
+                f"load average {os.getloadavg()[0]:.1f} now).")
         body = head + "\n\n" + body
         print(body)
         if a.json:
