@@ -339,15 +339,6 @@ def test_site_altitude_is_checked_and_explicit_wins():
 # ------------------------------------------------------------------ the paper's desert against Monte Carlo
 
 
-def _forward_peak_cut(prof, cutoff_deg):
-    """``prof`` with each aerosol phase function's forward peak inside ``cutoff_deg`` cut
-    away (delta-M: p* = min(p, p(cutoff)) renormalised, aerosol scattering x (1 - f)), for
-    the Monte Carlo reference: light scattered within a few degrees goes on as unscattered."""
-    from skymodel.validation.delta_m_medium import delta_m_profile
-
-    return delta_m_profile(prof, cutoff_deg)
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("aod550", [0.27, None])  # OPAC's table amount, and the paper's (2.33)
 def test_marcher_vs_monte_carlo_paper_desert(aod550):
@@ -362,12 +353,13 @@ def test_marcher_vs_monte_carlo_paper_desert(aod550):
     # one 10 deg from the sun is outside the 3-deg cone.
     from skymodel.render.marcher import MarchSettings, SkyMarcher
     from skymodel.render.rays import direction_from_angles
+    from skymodel.validation.delta_m_medium import delta_m_profile
     from skymodel.validation.montecarlo import trace_radiance
 
     prof = Atmosphere(location="desert", month=6, aod550=aod550).optical_profile((450.0, 650.0))
     views = ((0.0, 0.0), (45.0, 0.0), (45.0, 180.0), (80.0, 0.0), (80.0, 180.0), (88.0, 180.0))
     d = direction_from_angles(np.array([v[0] for v in views]), np.array([180.0 + v[1] for v in views]))
-    mc = trace_radiance(_forward_peak_cut(prof, 3.0), d, 20.0, 180.0, n_paths=20000, seed=31)
+    mc = trace_radiance(delta_m_profile(prof, 3.0), d, 20.0, 180.0, n_paths=20000, seed=31)
     r = SkyMarcher(prof, 20.0, 180.0, 0.0, MarchSettings(exact=True)).radiance(d).radiance
     rel = r / mc.radiance - 1.0
     assert np.all(np.abs(rel) <= 4.0 * mc.stderr / mc.radiance + 0.02), np.round(100 * rel, 1)

@@ -1,8 +1,13 @@
 """The statistics of the accuracy-against-truth benchmark (skymodel.validation.truth):
 median and worst relative error with their Monte Carlo noise, the exclusion of the sun's
-disc and first 2 degrees of aureole, the view set, the path budget. No tracing here."""
+disc and first 2 degrees of aureole, the view set, the path budget; bench_truth's committed runs
+and its planning of rounds. No tracing here but one two-view run of its parallel rounds."""
 
 from __future__ import annotations
+
+import importlib.util
+import os
+import sys
 
 import numpy as np
 import pytest
@@ -11,6 +16,19 @@ from skymodel.errors import SkymodelInputError
 from skymodel.render.rays import sun_direction
 from skymodel.validation.truth import (EXCLUDE_DEG, MEDIAN_NOISE_FACTOR, angle_to_sun_deg, paths_for_noise,
                                        truth_statistics, view_directions, view_set)
+
+BENCHMARKS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks")
+
+
+def _bench_truth(monkeypatch=None):
+    """benchmarks/bench_truth.py as a module; with ``monkeypatch`` also registered in
+    sys.modules for the test's duration (a process pool pickles its task by module name)."""
+    spec = importlib.util.spec_from_file_location("bench_truth", os.path.join(BENCHMARKS, "bench_truth.py"))
+    bt = importlib.util.module_from_spec(spec)
+    if monkeypatch is not None:
+        monkeypatch.setitem(sys.modules, "bench_truth", bt)
+    spec.loader.exec_module(bt)
+    return bt
 
 
 def test_statistics_of_known_errors():
@@ -105,11 +123,8 @@ def test_committed_truth_runs_are_read_when_the_cache_has_none(tmp_path):
     its views, positive means and the noise the benchmark asks for (sun 60 and 20: <= 0.65 %
     per direction), and bench_truth finds them with an empty cache."""
     import glob
-    import importlib.util
-    import os
 
-    root = os.path.join(os.path.dirname(__file__), "..", "benchmarks")
-    files = sorted(glob.glob(os.path.join(root, "truth", "mc_*.npz")))
+    files = sorted(glob.glob(os.path.join(BENCHMARKS, "truth", "mc_*.npz")))
     assert len(files) >= 4
     for f in files:
         with np.load(f) as z:
@@ -122,9 +137,7 @@ def test_committed_truth_runs_are_read_when_the_cache_has_none(tmp_path):
                 assert np.max(z["se"] / z["mean"]) <= 0.005, f
             if "rural_-4_" in f:  # topped up to the rule (0.5 % per direction)
                 assert np.max(z["se"] / z["mean"]) <= 0.005, f
-    spec = importlib.util.spec_from_file_location("bench_truth", os.path.join(root, "bench_truth.py"))
-    bt = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bt)
+    bt = _bench_truth()
     _, mc = bt.Scene("desert", 60.0, str(tmp_path)).load_mc()
     assert mc is not None and mc["mean"].shape == (view_set(60.0).shape[0], 3)
     # a run's file records its estimator and sun guide (--sun-guide overrides the table's)
@@ -136,13 +149,7 @@ def test_committed_truth_runs_are_read_when_the_cache_has_none(tmp_path):
 def test_a_round_of_paths_serves_the_directions_furthest_from_the_target_first():
     """bench_truth's round planning: with the budget short, every direction's top-up is
     scaled down alike and the largest batch (the noisiest directions) runs first."""
-    import importlib.util
-    import os
-
-    root = os.path.join(os.path.dirname(__file__), "..", "benchmarks")
-    spec = importlib.util.spec_from_file_location("bench_truth", os.path.join(root, "bench_truth.py"))
-    bt = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bt)
+    bt = _bench_truth()
     n = np.array([375_000, 375_000, 100_000, 100_000, 100_000])
     more = np.array([760_000, 700_000, 20_000, 30_000, 5_000])
     todo = more > 0.1 * n
@@ -158,15 +165,7 @@ def test_a_parallel_round_pools_chunks_with_their_own_seeds(tmp_path, monkeypatc
     """bench_truth mc --workers: each batch of a round is split into chunks of whole thousands
     of paths with seeds never used before, traced in forked processes and pooled; the
     pooled estimate agrees with a serial run of other seeds within their noise."""
-    import importlib.util
-    import os
-    import sys
-
-    root = os.path.join(os.path.dirname(__file__), "..", "benchmarks")
-    spec = importlib.util.spec_from_file_location("bench_truth", os.path.join(root, "bench_truth.py"))
-    bt = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, "bench_truth", bt)  # the workers' task is pickled by name
-    spec.loader.exec_module(bt)
+    bt = _bench_truth(monkeypatch)
     tasks = bt.split_batches([(np.array([0, 1]), 7000), (np.array([2]), 1500)], 4, 11)
     assert [t[1] for t in tasks] == [2000] * 4 + [2000]
     assert [t[2] for t in tasks] == [11, 12, 13, 14, 15]
