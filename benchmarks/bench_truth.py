@@ -28,6 +28,8 @@ and writes it to the cache).
 
     nice -n 5 python benchmarks/bench_truth.py mc --scenes all           # trace (cached, resumable)
     OMP_NUM_THREADS=1 python benchmarks/bench_truth.py mc --scenes desert:0 --workers 16   # a process a core
+    python benchmarks/bench_truth.py mc --scenes desert:-4 --seed-from 100001 --cache /elsewhere  # meanwhile,
+    python benchmarks/bench_truth.py pool --scenes desert:-4 --runs /elsewhere/mc_desert_-4_....npz  # then pool
     nice -n 5 python benchmarks/bench_truth.py march --scenes all        # the presets (cached)
     python benchmarks/bench_truth.py report --write-docs                 # docs/accuracy.md + img/
     python benchmarks/bench_truth.py pilot --scenes desert:20            # per-path noise and time
@@ -188,6 +190,26 @@ def _merge(mc, rows, res, n_paths, seed):
     mc["seeds"] = np.append(mc["seeds"], seed)
 
 
+def pool_runs(mc, other):
+    """Pool ``other`` into ``mc`` (two runs of one scene: same views, estimator and sun guide)
+    direction by direction, weighted by their paths, as :func:`_merge` pools a batch. Two runs
+    traced apart (another machine, ``mc --seed-from``) are independent only if no seed was
+    used by both: a shared seed raises ``ValueError``, as do other views."""
+    if not np.array_equal(np.round(mc["views"], 3), np.round(other["views"], 3)):
+        raise ValueError("pool: the runs have different views")
+    shared = np.intersect1d(mc["seeds"], other["seeds"])
+    if shared.size:
+        raise ValueError(f"pool: seeds {shared[:5].tolist()} were used by both runs: not independent")
+    n_a, n_b = mc["n"].astype(float)[:, None], other["n"].astype(float)[:, None]
+    tot = np.maximum(n_a + n_b, 1.0)
+    mc["mean"] = (mc["mean"] * n_a + other["mean"] * n_b) / tot
+    mc["se"] = np.sqrt((mc["se"] * n_a) ** 2 + (other["se"] * n_b) ** 2) / tot
+    mc["n"] = mc["n"] + other["n"]
+    mc["seconds"] = np.float64(mc["seconds"] + other["seconds"])
+    mc["seeds"] = np.append(mc["seeds"], other["seeds"])
+    return mc
+
+
 def plan_round(n, more, todo, seconds_per_path, left_s):
     """One round of paths: [(rows, paths)], the directions that need most first.
 
@@ -236,12 +258,14 @@ def split_batches(batches, workers, seed):
     return tasks
 
 
-def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers=1):
+def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers=1, seed_from=1):
     """Trace ``scene`` until every direction's relative standard error is ``target_se`` (or
     it has ``max_paths`` paths, or ``budget_s`` wall-clock seconds have passed), saving after
     every batch. ``workers`` > 1 splits each round's batches into chunks with their own
     seeds over that many processes (forked; each process single-threaded numpy); the run's
-    ``seconds`` counts the processes' tracing time (CPU-seconds), its plan the wall-clock."""
+    ``seconds`` counts the processes' tracing time (CPU-seconds), its plan the wall-clock.
+    Seeds start at ``seed_from`` or after the run's last, whichever is larger: a run traced
+    elsewhere from other seeds can be pooled with this one (:func:`pool_runs`)."""
     log = log or (lambda line: print(line, flush=True))
     prof, mc = scene.load_mc()
     nd, nw = scene.dirs.shape[0], prof.n_wavelengths
@@ -250,7 +274,7 @@ def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers
                   seconds=np.float64(0.0), seeds=np.zeros(0, dtype=np.int64), views=scene.views)
     guide = scene.sun_guide
     t0 = time.perf_counter()
-    seed = int(mc["seeds"].max()) + 1 if mc["seeds"].size else 1
+    seed = max(int(seed_from), int(mc["seeds"].max()) + 1 if mc["seeds"].size else 1)
     if mc["n"].min() == 0:
         rows = np.flatnonzero(mc["n"] == 0)
         res = trace_radiance(prof, scene.dirs[rows], scene.elev, SUN_AZIMUTH, n_paths=pilot_paths, seed=seed,
@@ -508,7 +532,7 @@ def write_doc(body, doc=DOC):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("what", choices=("pilot", "mc", "march", "report", "knobs", "views"))
+    ap.add_argument("what", choices=("pilot", "mc", "pool", "march", "report", "knobs", "views"))
     ap.add_argument("--base", default="final", help="knobs: the preset the variants change")
     ap.add_argument("--variants", default="", help="knobs: ';'-separated 'field=value,...' variants")
     ap.add_argument("--scenes", default="all")
@@ -525,6 +549,10 @@ def main(argv=None):
     ap.add_argument("--pilot-paths", type=int, default=3000)
     ap.add_argument("--workers", type=int, default=1, help="mc: processes tracing each round's batches in chunks "
                     "with their own seeds (one per core; set OMP_NUM_THREADS=1)")
+    ap.add_argument("--seed-from", type=int, default=1, help="mc: the first seed at least (a run traced elsewhere "
+                    "at the same time takes seeds far from this one's, to be pooled with it)")
+    ap.add_argument("--runs", default="", help="pool: comma list of run files (.npz) of the one scene given, "
+                    "traced apart from other seeds, to pool into its cached run")
     ap.add_argument("--budget-min", type=float, default=60.0, help="MC minutes per scene, at most (then stop)")
     ap.add_argument("--qualities", default=",".join(QUALITY_NAMES))
     ap.add_argument("--write-docs", action="store_true", help="write docs/accuracy.md's section and its plot")
@@ -544,10 +572,24 @@ def main(argv=None):
     elif a.what == "mc":
         for sc in scenes:
             t = time.perf_counter()
-            _, mc = run_mc(sc, a.target_se, a.max_paths, a.pilot_paths, 60.0 * a.budget_min, workers=a.workers)
+            _, mc = run_mc(sc, a.target_se, a.max_paths, a.pilot_paths, 60.0 * a.budget_min, workers=a.workers,
+                           seed_from=a.seed_from)
             rel = mc["se"] / mc["mean"]
             print(f"{sc.name}: {time.perf_counter() - t:.0f} s; paths {mc['n'].min()}..{mc['n'].max()}; rel se "
                   f"median {100 * np.median(rel):.2f} % max {100 * rel.max():.2f} %", flush=True)
+    elif a.what == "pool":
+        if len(scenes) != 1 or not a.runs:
+            raise SystemExit("pool: give one scene (--scenes) and the runs to pool into it (--runs)")
+        sc = scenes[0]
+        prof, mc = sc.load_mc()
+        for f in a.runs.split(","):
+            with np.load(f) as z:
+                other = {k: z[k] for k in z.files}
+            mc = other if mc is None else pool_runs(mc, other)
+            rel = mc["se"] / mc["mean"]
+            print(f"{sc.name} + {os.path.basename(f)}: paths {mc['n'].min()}..{mc['n'].max()}; rel se median "
+                  f"{100 * np.median(rel):.2f} % max {100 * rel.max():.2f} %", flush=True)
+        sc.save_mc(prof, mc)
     elif a.what == "march":
         for sc in scenes:
             for q in a.qualities.split(","):

@@ -184,3 +184,38 @@ def test_a_parallel_round_pools_chunks_with_their_own_seeds(tmp_path, monkeypatc
         runs[workers] = mc
     a, b = runs[1], runs[2]
     assert np.all(np.abs(a["mean"] - b["mean"]) < 5.0 * np.hypot(a["se"], b["se"]))
+
+
+def test_runs_traced_apart_pool_as_one_run_and_shared_seeds_are_refused():
+    """bench_truth pool: two runs of one scene from disjoint seeds (``mc --seed-from``) pool
+    into the estimate that merging their batches one by one gives; a seed used by both
+    (the runs would not be independent) or other views are refused."""
+    bt = _bench_truth()
+    rng = np.random.default_rng(3)
+    views = np.array([[80.0, 0.0], [60.0, 90.0], [30.0, 180.0]])
+
+    class Res:
+        def __init__(self, k):
+            self.radiance, self.stderr, self.time_s = rng.random((k, 2)) + 1.0, 0.01 * rng.random((k, 2)), 2.0
+
+    def empty():
+        return dict(mean=np.zeros((3, 2)), se=np.zeros((3, 2)), n=np.zeros(3, dtype=np.int64),
+                    seconds=np.float64(0.0), seeds=np.zeros(0, dtype=np.int64), views=views)
+
+    batches = [(np.array([0, 1, 2]), 1000, 1, Res(3)), (np.array([1]), 3000, 2, Res(1)),
+               (np.array([0, 2]), 2000, 100001, Res(2)), (np.array([2]), 5000, 100002, Res(1))]
+    serial, a, b = empty(), empty(), empty()
+    for rows, n, seed, res in batches:
+        bt._merge(serial, rows, res, n, seed)
+        bt._merge(a if seed < 100001 else b, rows, res, n, seed)
+    pooled = bt.pool_runs(a, b)
+    assert np.array_equal(pooled["n"], serial["n"]) and pooled["seconds"] == serial["seconds"] == 8.0
+    np.testing.assert_allclose(pooled["mean"], serial["mean"], rtol=1e-12)
+    np.testing.assert_allclose(pooled["se"], serial["se"], rtol=1e-12)
+    c = empty()
+    bt._merge(c, np.array([0]), Res(1), 1000, 2)
+    with pytest.raises(ValueError, match="seeds"):
+        bt.pool_runs(pooled, c)
+    c["views"] = views[::-1]
+    with pytest.raises(ValueError, match="views"):
+        bt.pool_runs(empty(), c)
