@@ -28,7 +28,7 @@ and writes it to the cache).
 
     nice -n 5 python benchmarks/bench_truth.py mc --scenes all           # trace (cached, resumable)
     OMP_NUM_THREADS=1 python benchmarks/bench_truth.py mc --scenes desert:0 --workers 16   # a process a core
-    python benchmarks/bench_truth.py mc --scenes desert:-4 --seed-from 100001 --cache /elsewhere  # meanwhile,
+    python benchmarks/bench_truth.py mc --scenes desert:-4 --seed-from 200001 --cache /elsewhere  # meanwhile,
     python benchmarks/bench_truth.py pool --scenes desert:-4 --runs /elsewhere/mc_desert_-4_....npz  # then pool
     nice -n 5 python benchmarks/bench_truth.py march --scenes all        # the presets (cached)
     python benchmarks/bench_truth.py report --write-docs                 # docs/accuracy.md + img/
