@@ -163,8 +163,7 @@ class Scene:
             f = os.path.join(TRUTH_DIR, os.path.basename(f))
         if not os.path.exists(f):
             return prof, None
-        with np.load(f) as z:
-            return prof, {k: z[k] for k in z.files}
+        return prof, read_run(f)
 
     def save_mc(self, prof, mc):
         os.makedirs(self.cache, exist_ok=True)
@@ -177,14 +176,32 @@ class Scene:
         return os.path.join(self.cache, f"march_{self.name}_{quality}_{sources_hash()}.npz")
 
 
+def read_run(path):
+    """A Monte Carlo run file (.npz) as the dict ``run_mc`` keeps: mean, se, n, seconds, seeds, views."""
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files}
+
+
+def run_summary(mc):
+    """One line on a run: its paths per direction and relative standard errors."""
+    rel = mc["se"] / mc["mean"]
+    return (f"paths {mc['n'].min()}..{mc['n'].max()}; rel se median {100 * np.median(rel):.2f} % "
+            f"max {100 * rel.max():.2f} %")
+
+
+def _pooled(mean_a, se_a, n_a, mean_b, se_b, n_b):
+    """Two independent estimates of the same means (per direction and wavelength) from
+    ``n_a`` and ``n_b`` paths (per direction, (D, 1), or one count) pooled as one of
+    n_a + n_b paths: (mean, se). Directions with no paths in either keep 0."""
+    tot = np.maximum(n_a + n_b, 1.0)
+    return (mean_a * n_a + mean_b * n_b) / tot, np.sqrt((se_a * n_a) ** 2 + (se_b * n_b) ** 2) / tot
+
+
 def _merge(mc, rows, res, n_paths, seed):
     """Add a run (rows of the directions, MCResult with n_paths paths) to the pooled estimate."""
-    n_old = mc["n"][rows].astype(float)[:, None]
-    m_old, se_old = mc["mean"][rows], mc["se"][rows]
-    n_new = float(n_paths)
-    tot = n_old + n_new
-    mc["mean"][rows] = (m_old * n_old + res.radiance * n_new) / tot
-    mc["se"][rows] = np.sqrt((se_old * n_old) ** 2 + (res.stderr * n_new) ** 2) / tot
+    mc["mean"][rows], mc["se"][rows] = _pooled(mc["mean"][rows], mc["se"][rows],
+                                               mc["n"][rows].astype(float)[:, None],
+                                               res.radiance, res.stderr, float(n_paths))
     mc["n"][rows] += n_paths
     mc["seconds"] = mc["seconds"] + res.time_s
     mc["seeds"] = np.append(mc["seeds"], seed)
@@ -200,10 +217,8 @@ def pool_runs(mc, other):
     shared = np.intersect1d(mc["seeds"], other["seeds"])
     if shared.size:
         raise ValueError(f"pool: seeds {shared[:5].tolist()} were used by both runs: not independent")
-    n_a, n_b = mc["n"].astype(float)[:, None], other["n"].astype(float)[:, None]
-    tot = np.maximum(n_a + n_b, 1.0)
-    mc["mean"] = (mc["mean"] * n_a + other["mean"] * n_b) / tot
-    mc["se"] = np.sqrt((mc["se"] * n_a) ** 2 + (other["se"] * n_b) ** 2) / tot
+    mc["mean"], mc["se"] = _pooled(mc["mean"], mc["se"], mc["n"].astype(float)[:, None],
+                                   other["mean"], other["se"], other["n"].astype(float)[:, None])
     mc["n"] = mc["n"] + other["n"]
     mc["seconds"] = np.float64(mc["seconds"] + other["seconds"])
     mc["seeds"] = np.append(mc["seeds"], other["seeds"])
@@ -574,21 +589,16 @@ def main(argv=None):
             t = time.perf_counter()
             _, mc = run_mc(sc, a.target_se, a.max_paths, a.pilot_paths, 60.0 * a.budget_min, workers=a.workers,
                            seed_from=a.seed_from)
-            rel = mc["se"] / mc["mean"]
-            print(f"{sc.name}: {time.perf_counter() - t:.0f} s; paths {mc['n'].min()}..{mc['n'].max()}; rel se "
-                  f"median {100 * np.median(rel):.2f} % max {100 * rel.max():.2f} %", flush=True)
+            print(f"{sc.name}: {time.perf_counter() - t:.0f} s; {run_summary(mc)}", flush=True)
     elif a.what == "pool":
         if len(scenes) != 1 or not a.runs:
             raise SystemExit("pool: give one scene (--scenes) and the runs to pool into it (--runs)")
         sc = scenes[0]
         prof, mc = sc.load_mc()
         for f in a.runs.split(","):
-            with np.load(f) as z:
-                other = {k: z[k] for k in z.files}
+            other = read_run(f)
             mc = other if mc is None else pool_runs(mc, other)
-            rel = mc["se"] / mc["mean"]
-            print(f"{sc.name} + {os.path.basename(f)}: paths {mc['n'].min()}..{mc['n'].max()}; rel se median "
-                  f"{100 * np.median(rel):.2f} % max {100 * rel.max():.2f} %", flush=True)
+            print(f"{sc.name} + {os.path.basename(f)}: {run_summary(mc)}", flush=True)
         sc.save_mc(prof, mc)
     elif a.what == "march":
         for sc in scenes:
