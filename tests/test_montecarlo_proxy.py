@@ -103,3 +103,56 @@ def test_proxy_estimator_bad_input(profile):
         trace_radiance(profile, [[0.0, 0.0, 1.0]], 0.0, 0.0, estimator="proxie")
     with pytest.raises(SkymodelInputError, match="sun_guide"):
         trace_radiance(profile, [[0.0, 0.0, 1.0]], 0.0, 0.0, estimator="proxy", sun_guide=1.0)
+
+
+def test_roulette_does_not_promote_a_small_weight_heading_into_the_forward_peak(profile, coarse_guide):
+    """_roulette keeps every weight's expectation; with the sun guide a path heading toward
+    the sun (where the next vertex's score ~ the aerosol phase function there) survives in
+    proportion to weight x 4 pi x the guide's density and comes out at about 1 / that
+    factor instead of 1, while a path heading away is rouletted on its weight alone."""
+    from skymodel.validation.montecarlo import _guide_pdf, _roulette
+
+    med = _Medium(profile, np.array([1]))
+    sun = sun_direction(-2.0, 180.0).reshape(3)
+    m = 400_000
+    away = direction_from_angles(60.0, 0.0).reshape(3)
+    D = np.where((np.arange(m) < m // 2)[:, None], sun[None, :], away[None, :])
+    Wl = np.zeros(m, dtype=int)
+    beta0 = np.full(m, 1e-2)
+    factor = 4.0 * np.pi * _guide_pdf(med, D[:1], Wl[:1], sun)[0]
+    assert factor > 10.0  # the synthetic aerosol's forward peak (about 19)
+    toward = np.arange(m) < m // 2
+    for guide in (0.0, 0.3):
+        beta, keep = _roulette(med, beta0.copy(), D, Wl, sun, guide, np.ones(m, dtype=bool), np.random.default_rng(4))
+        for part in (toward, ~toward):  # unbiased: the mean weight is kept
+            b = beta[part]
+            assert abs(b.mean() - 1e-2) < 4.0 * b.std() / np.sqrt(b.size)
+        assert np.array_equal(keep, beta > 0.0)
+        assert np.all(beta[~toward & keep] == 1.0)  # away from the sun: promoted to 1 as before
+        if guide == 0.0:
+            assert np.all(beta[toward & keep] == 1.0)
+        else:  # toward the sun: weight x 4 pi g is 1, not the factor
+            assert np.allclose(beta[toward & keep] * factor, 1.0)
+            assert abs(keep[toward].mean() - 1e-2 * factor) < 0.01
+    kept = np.zeros(m, dtype=bool)  # paths not kept stay out, whatever their weight
+    beta, keep = _roulette(med, np.ones(m), D, Wl, sun, 0.3, kept, np.random.default_rng(5))
+    assert not keep.any()
+
+
+def test_the_sunlit_loop_roulettes_with_the_sun_guide(profile, coarse_guide, monkeypatch):
+    """The proxy estimator's paths are rouletted as the guided NEE's are (the desert at sun
+    -4 deg: without it a rare survivor heading into the dust's peak scored ~1e4 times a
+    typical path, notebooks/proxy_tail)."""
+    import skymodel.validation.montecarlo as mcm
+
+    seen = []
+    real = mcm._roulette
+
+    def spy(med, beta, D, Wl, sun, sun_guide, keep, rng):
+        seen.append(sun_guide)
+        return real(med, beta, D, Wl, sun, sun_guide, keep, rng)
+
+    monkeypatch.setattr(mcm, "_roulette", spy)
+    dirs = direction_from_angles([0.0, 85.0], [0.0, 180.0])
+    trace_radiance(profile, dirs, -2.0, 180.0, n_paths=200, seed=7, estimator="proxy", sun_guide=0.2)
+    assert seen and set(seen) == {0.2}
