@@ -28,7 +28,7 @@ and writes it to the cache).
 
     nice -n 5 python benchmarks/bench_truth.py mc --scenes all           # trace (cached, resumable)
     OMP_NUM_THREADS=1 python benchmarks/bench_truth.py mc --scenes desert:0 --workers 16   # a process a core
-    python benchmarks/bench_truth.py mc --scenes desert:-4 --seed-from 200001 --cache /elsewhere  # meanwhile,
+    python benchmarks/bench_truth.py mc --scenes desert:-4 --seed-from 400001 --cache /elsewhere  # meanwhile,
     python benchmarks/bench_truth.py pool --scenes desert:-4 --runs /elsewhere/mc_desert_-4_....npz  # then pool
     nice -n 5 python benchmarks/bench_truth.py march --scenes all        # the presets (cached)
     python benchmarks/bench_truth.py report --write-docs                 # docs/accuracy.md + img/
@@ -114,13 +114,14 @@ def _profile_hash(prof):
     return h.hexdigest()[:12]
 
 
-def sources_hash():
+def sources_hash(root=None):
     """Hash of the renderer's sources (every skymodel/**/*.py but the validation wing and
     the CLI): the key of the cached marcher results, so a re-run re-marches exactly when
-    the code that renders changed."""
-    root = os.path.join(_HERE, "..", "skymodel")
+    the code that renders changed. (Until 2026-11-27 the walk was sorted before it was
+    pruned, so the two wings counted too and a change to the tracer re-marched.)"""
+    root = os.path.join(_HERE, "..", "skymodel") if root is None else root
     h = hashlib.sha1()
-    for dirpath, dirnames, files in sorted(os.walk(root)):
+    for dirpath, dirnames, files in os.walk(root):  # top-down: pruning dirnames skips the wings
         dirnames[:] = sorted(d for d in dirnames if d not in ("validation", "cli", "__pycache__"))
         for f in sorted(files):
             if f.endswith(".py"):

@@ -222,3 +222,25 @@ def test_runs_traced_apart_pool_as_one_run_and_shared_seeds_are_refused():
     c["views"] = views[::-1]
     with pytest.raises(ValueError, match="views"):
         bt.pool_runs(empty(), c)
+
+
+def test_the_march_cache_key_ignores_the_validation_wing_and_the_cli(tmp_path):
+    """bench_truth keys cached marcher results by the renderer's sources: a change to the
+    tracer (validation/) or the CLI keeps them, a change to the renderer re-marches."""
+    bt = _bench_truth()
+    root = tmp_path / "skymodel"
+    for sub in ("render", "validation", "cli"):
+        (root / sub).mkdir(parents=True)
+        (root / sub / "m.py").write_text(f"X = '{sub}'\n")
+    (root / "top.py").write_text("Y = 1\n")
+    key = bt.sources_hash(str(root))
+    for sub in ("validation", "cli"):
+        (root / sub / "m.py").write_text("X = 'changed'\n")
+        (root / sub / "new.py").write_text("Z = 2\n")
+    assert bt.sources_hash(str(root)) == key
+    (root / "render" / "m.py").write_text("X = 'changed'\n")
+    assert bt.sources_hash(str(root)) != key
+    (root / "render" / "m.py").write_text("X = 'render'\n")
+    assert bt.sources_hash(str(root)) == key
+    (root / "top.py").write_text("Y = 2\n")
+    assert bt.sources_hash(str(root)) != key
