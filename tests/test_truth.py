@@ -137,8 +137,11 @@ def test_committed_truth_runs_are_read_when_the_cache_has_none(tmp_path):
                 assert np.max(z["se"] / z["mean"]) <= 0.005, f
             if "rural_-4_" in f:  # topped up to the rule (0.5 % per direction)
                 assert np.max(z["se"] / z["mean"]) <= 0.005, f
-            if "desert_-4_" in f:  # short of the rule: the guided proxy's heavy paths (docs/accuracy.md)
+            if "desert_-4_" in f:  # short of the rule: the dim horizon views' spread (docs/accuracy.md)
                 assert np.median(z["se"] / z["mean"]) <= 0.006, f
+                # traced with the proxy's roulette weighed by the sun guide (2f6ebe8, seeds from
+                # 300001); the run before it read low at 550/650 nm (notebooks/proxy_tail)
+                assert z["seeds"].min() >= 300001, f
             assert np.unique(z["seeds"]).size == z["seeds"].size, f  # pooled runs: independent seeds
     bt = _bench_truth()
     _, mc = bt.Scene("desert", 60.0, str(tmp_path)).load_mc()
