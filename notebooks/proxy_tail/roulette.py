@@ -11,26 +11,15 @@ now) does not.
 usage: roulette.py plain|guided scene view wl_index paths seed
   e.g. roulette.py plain desert:-4 85/0 2 500000 11
 """
-import os
 import sys
 import time
 
 import numpy as np
 
-sys.path[:0] = ["benchmarks"]
-import bench_truth as bt  # noqa: E402
-from skymodel.render.rays import sun_direction  # noqa: E402
-from skymodel.validation import montecarlo as mcm  # noqa: E402
+from _setup import bt, mcm, one_view
 
 mode, scene, view, wi, n, seed = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4]), int(sys.argv[5]), int(sys.argv[6])
-a, e = scene.split(":")
-sc = bt.Scene(a, float(e), os.environ.get("TRUTH_CACHE", ".cache/truth"))
-k = [i for i, v in enumerate(sc.views) if f"{v[0]:g}/{v[1]:g}" == view][0]
-prof = sc.mc_profile()
-med = mcm._Medium(prof, np.array([wi]))
-px = mcm._proxy_medium(med)
-sun = sun_direction(sc.elev, bt.SUN_AZIMUTH).astype(float).reshape(3)
-origin = np.array([0.0, 0.0, float(prof.planet_radius_m)])
+sc, k, med, px, sun, origin = one_view(scene, view, wi)
 
 if mode == "plain":
     def plain(med_, beta, D, Wl, sun_, sun_guide, keep, rng, _guided=mcm._roulette):

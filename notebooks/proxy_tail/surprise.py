@@ -13,21 +13,11 @@ import sys
 
 import numpy as np
 
-sys.path[:0] = ["benchmarks"]
-import bench_truth as bt  # noqa: E402
-from skymodel.render.rays import sun_direction  # noqa: E402
-from skymodel.validation import montecarlo as mcm  # noqa: E402
+from _setup import bt, mcm, one_view
 
 scene, view, wi, n = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
 seed = int(sys.argv[5]) if len(sys.argv) > 5 else 1
-a, e = scene.split(":")
-sc = bt.Scene(a, float(e), os.environ.get("TRUTH_CACHE", ".cache/truth"))
-k = [i for i, v in enumerate(sc.views) if f"{v[0]:g}/{v[1]:g}" == view][0]
-prof = sc.mc_profile()
-med = mcm._Medium(prof, np.array([wi]))
-px = mcm._proxy_medium(med)
-sun = sun_direction(sc.elev, bt.SUN_AZIMUTH).astype(float).reshape(3)
-origin = np.array([0.0, 0.0, float(prof.planet_radius_m)])
+sc, k, med, px, sun, origin = one_view(scene, view, wi)
 
 REC = []
 _orig = mcm._Line.sample
