@@ -116,12 +116,12 @@ def test_roulette_does_not_promote_a_small_weight_heading_into_the_forward_peak(
     sun = sun_direction(-2.0, 180.0).reshape(3)
     m = 400_000
     away = direction_from_angles(60.0, 0.0).reshape(3)
-    D = np.where((np.arange(m) < m // 2)[:, None], sun[None, :], away[None, :])
+    toward = np.arange(m) < m // 2
+    D = np.where(toward[:, None], sun[None, :], away[None, :])
     Wl = np.zeros(m, dtype=int)
     beta0 = np.full(m, 1e-2)
     factor = 4.0 * np.pi * _guide_pdf(med, D[:1], Wl[:1], sun)[0]
     assert factor > 10.0  # the synthetic aerosol's forward peak (about 19)
-    toward = np.arange(m) < m // 2
     for guide in (0.0, 0.3):
         beta, keep = _roulette(med, beta0.copy(), D, Wl, sun, guide, np.ones(m, dtype=bool), np.random.default_rng(4))
         for part in (toward, ~toward):  # unbiased: the mean weight is kept
