@@ -137,6 +137,12 @@ def estimator_for(elev, override=None):
     return ESTIMATOR_LOW_SUN if float(elev) < LOW_SUN_DEG else ESTIMATOR_SUN_UP
 
 
+def view_label(view):
+    """A view as the tables and the notebooks name it: (zenith, azimuth from the sun) in degrees
+    -> 'zenith/azimuth', e.g. (89, 4.899) -> '89/4.899'."""
+    return f"{view[0]:g}/{view[1]:g}"
+
+
 class Scene:
     def __init__(self, aerosol, elev, cache, estimator=None, sun_guide=None):
         self.aerosol, self.elev, self.cache = aerosol, float(elev), cache
@@ -148,6 +154,16 @@ class Scene:
         self.dirs = view_directions(self.views, SUN_AZIMUTH)
         self.angle = angle_to_sun_deg(self.dirs, sun_direction(self.elev, SUN_AZIMUTH))
         self.name = f"{aerosol}_{self.elev:g}"
+
+    def view_rows(self, names):
+        """Rows of the views named (:func:`view_label`; a list or a comma-separated string), in
+        the scene's order; an unknown name raises KeyError listing the scene's names."""
+        names = names.split(",") if isinstance(names, str) else list(names)
+        labels = [view_label(v) for v in self.views]
+        missing = [n for n in names if n not in labels]
+        if missing:
+            raise KeyError(f"{self.name} has no view {', '.join(missing)}; its views: {', '.join(labels)}")
+        return sorted(labels.index(n) for n in names)
 
     def mc_profile(self):
         return self.atm.optical_profile(list(MC_WAVELENGTHS_NM))
@@ -231,21 +247,29 @@ def plan_round(n, more, todo, seconds_per_path, left_s):
 
     Each direction in ``todo`` gets up to the ``more`` paths it needs (at most 4x the ``n``
     it has), scaled down to what the ``left_s`` seconds of budget allow at
-    ``seconds_per_path`` (all wavelengths), in thousands. Directions whose paths lie within
-    a factor 2 of each other run as one batch of the batch's largest count. The batches run
-    in order of that count, largest first: with the budget running out, the directions that
-    are furthest from the noise target (most often the same few grazing ones) are the ones
-    served, not skipped after the many small top-ups (a rural 0 deg run with ``--max-paths``
-    had left its 0.87 % directions untouched that way)."""
-    add = np.where(todo, np.minimum(more, 4 * n), 0)
-    if add.sum() * seconds_per_path > left_s:
-        add = np.floor(add * max(left_s, 0.0) / (add.sum() * seconds_per_path) / 1000.0).astype(int) * 1000
-    todo = todo & (add > 0)
-    if not np.any(todo):
-        return []
-    exp = np.ceil(np.log2(np.maximum(add, 1)))
-    return [(np.flatnonzero(todo & (exp == g)), int(np.max(add[todo & (exp == g)])))
-            for g in np.unique(exp[todo])[::-1]]
+    ``seconds_per_path`` (all wavelengths; one number, or one per direction), in thousands.
+    Directions whose paths lie within a factor 2 of each other run as one batch of the
+    batch's largest count (what that raises is counted against the budget too). The batches
+    run in order of that count, largest first: with the budget running out, the directions
+    that are furthest from the noise target (most often the same few grazing ones) are the
+    ones served, not skipped after the many small top-ups (a rural 0 deg run with
+    ``--max-paths`` had left its 0.87 % directions untouched that way)."""
+    per_path = np.broadcast_to(np.asarray(seconds_per_path, float), np.shape(n))
+    want = np.where(todo, np.minimum(more, 4 * n), 0)
+    scale, batches = 1.0, []
+    for _ in range(4):  # scale down until the batches, each at its largest count, fit
+        add = want if scale >= 1.0 else np.floor(want * scale / 1000.0).astype(int) * 1000
+        live = todo & (add > 0)
+        if not np.any(live):
+            return []
+        exp = np.ceil(np.log2(np.maximum(add, 1)))
+        batches = [(np.flatnonzero(live & (exp == g)), int(np.max(add[live & (exp == g)])))
+                   for g in np.unique(exp[live])[::-1]]
+        cost = sum(paths * float(np.sum(per_path[rows])) for rows, paths in batches)
+        if cost <= left_s:
+            return batches
+        scale *= max(left_s, 0.0) / cost
+    return batches
 
 
 #: What the worker processes of :func:`run_mc` trace with (set before the pool forks).
@@ -290,12 +314,19 @@ def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers
                   seconds=np.float64(0.0), seeds=np.zeros(0, dtype=np.int64), views=scene.views)
     guide = scene.sun_guide
     t0 = time.perf_counter()
+    # seconds per path of each direction (all wavelengths): the run's average until a batch of
+    # this session has timed the direction. The grazing views' paths cost more than the
+    # average (desert -4 deg: 88-89 deg views 1.4-1.7x the zenith's), and the rounds serve
+    # them most: a 72-minute budget planned on the average ran 78 minutes.
+    per_dir = np.full(nd, float(mc["seconds"]) / max(1.0, float(mc["n"].sum())))
     seed = max(int(seed_from), int(mc["seeds"].max()) + 1 if mc["seeds"].size else 1)
     if mc["n"].min() == 0:
         rows = np.flatnonzero(mc["n"] == 0)
         res = trace_radiance(prof, scene.dirs[rows], scene.elev, SUN_AZIMUTH, n_paths=pilot_paths, seed=seed,
                              sun_guide=guide, estimator=scene.estimator)
         _merge(mc, rows, res, pilot_paths, seed)
+        per_dir[:] = float(mc["seconds"]) / max(1.0, float(mc["n"].sum()))
+        per_dir[rows] = res.time_s / (pilot_paths * rows.size)
         scene.save_mc(prof, mc)
         seed += 1
     _WORK.update(prof=prof, dirs=scene.dirs, elev=scene.elev, guide=guide, estimator=scene.estimator)
@@ -312,9 +343,8 @@ def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers
             todo = more > 0.1 * mc["n"]
             if not np.any(todo) or time.perf_counter() - t0 > budget_s:
                 break
-            per_path = float(mc["seconds"]) / max(1.0, float(mc["n"].sum()) * nw)
             left = (budget_s - (time.perf_counter() - t0)) * max(1, workers)
-            batches = plan_round(mc["n"], more, todo, per_path * nw, left)
+            batches = plan_round(mc["n"], more, todo, per_dir, left)
             if not batches:
                 break
             tasks = split_batches(batches, workers, seed) if pool else [(r, n, seed + i)
@@ -323,6 +353,7 @@ def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers
             done = pool.imap_unordered(_trace_chunk, tasks) if pool else map(_trace_chunk, tasks)
             for rows, n, s, res in done:
                 _merge(mc, rows, res, n, s)
+                per_dir[rows] = res.time_s / (n * rows.size)
                 scene.save_mc(prof, mc)
                 log(f"  {scene.name}: {rows.size} directions +{n} paths (seed {s}, {res.time_s:.0f} s); "
                     f"worst rel se now {100 * np.max(mc['se'] / mc['mean']):.2f} %")
@@ -407,7 +438,7 @@ def views_table(scene):
     print(f"{scene.name}: view (zenith/az. from sun) | angle to sun | " + " | ".join(rels) + " (%, 450/550/650) | MC se (%)")
     for i, v in enumerate(scene.views):
         cells = " | ".join("/".join(f"{100 * x:+.2f}" for x in r[i]) for r in rels.values())
-        print(f"{v[0]:g}/{v[1]:g} | {scene.angle[i]:.1f} | {cells} | "
+        print(f"{view_label(v)} | {scene.angle[i]:.1f} | {cells} | "
               + "/".join(f"{100 * x:.2f}" for x in se[i] / truth[i]))
 
 
@@ -478,7 +509,7 @@ def report(rows, plot_path):
         def trip(key, fmt="{:.2f}", scale=100.0):
             return "/".join(fmt.format(scale * v) for v in st[key])
 
-        where = ", ".join(sorted({f"{v[0]:g}/{v[1]:g}" for v in r["worst_view"]}))
+        where = ", ".join(sorted({view_label(v) for v in r["worst_view"]}))
         ok_m = max(st["median"]) <= TOL_MEDIAN
         ok_w = max(abs(v) for v in st["worst"]) <= TOL_WORST
         met = "yes" if ok_m and ok_w else ("median only" if ok_m else ("worst only" if ok_w else "no"))

@@ -161,10 +161,29 @@ def test_a_round_of_paths_serves_the_directions_furthest_from_the_target_first()
     todo = more > 0.1 * n
     plenty = bt.plan_round(n, more, todo, 1e-6, 1e9)
     assert [r.tolist() for r, _ in plenty] == [[0, 1], [2, 3]] and [p for _, p in plenty] == [760_000, 30_000]
-    short = bt.plan_round(n, more, todo, 1e-3, 0.5 * 1e-3 * 1_510_000)  # half of what the round needs
-    assert short[0][0].tolist() == [0, 1] and short[0][1] == 380_000
+
+    def spent(plan, cost):
+        planned = np.zeros(5)
+        for rows, paths in plan:
+            planned[rows] = paths
+        return float(np.sum(planned * cost))
+
+    left = 0.5 * 1e-3 * 1_510_000  # half of what the round needs
+    short = bt.plan_round(n, more, todo, 1e-3, left)
+    assert short[0][0].tolist() == [0, 1] and 340_000 <= short[0][1] <= 380_000
+    # each batch runs at its largest count: that is within the budget too
+    assert 0.95 * left <= spent(short, 1e-3) <= left
     assert all(p % 1000 == 0 for _, p in short)
     assert bt.plan_round(n, more, np.zeros(5, bool), 1e-6, 1e9) == []
+    # each direction's own cost per path: the noisiest (grazing) directions cost 3x the
+    # others; a round planned on the run's average cost overruns the budget, one planned on
+    # the directions' own costs fills it
+    cost = np.array([3e-3, 3e-3, 1e-3, 1e-3, 1e-3])
+    left = 0.5 * float(np.sum(np.minimum(more, 4 * n) * cost))
+
+    assert 0.95 * left <= spent(bt.plan_round(n, more, todo, cost, left), cost) <= left
+    average = float(np.sum(cost * n) / n.sum())  # what the run's seconds / paths say
+    assert spent(bt.plan_round(n, more, todo, average, left), cost) > 1.15 * left  # a fifth over
 
 
 def test_a_parallel_round_pools_chunks_with_their_own_seeds(tmp_path, monkeypatch):
@@ -247,3 +266,19 @@ def test_the_march_cache_key_ignores_the_validation_wing_and_the_cli(tmp_path):
     assert bt.sources_hash(str(root)) == key
     (root / "top.py").write_text("Y = 2\n")
     assert bt.sources_hash(str(root)) != key
+
+
+def test_views_are_found_by_the_names_the_tables_print(tmp_path):
+    """bench_truth names a view 'zenith/azimuth from the sun' (the tables' first column); the
+    notebooks pick views by those names: rows in the scene's order, an unknown name refused
+    with the scene's names rather than skipped."""
+    bt = _bench_truth()
+    assert bt.view_label((89.0, 4.899)) == "89/4.899" and bt.view_label(np.array([0.0, 0.0])) == "0/0"
+    sc = bt.Scene("rural", 0.0, str(tmp_path))
+    labels = [bt.view_label(v) for v in sc.views]
+    assert len(set(labels)) == len(labels)  # the names tell the views apart
+    pick = [labels[5], labels[2]]
+    assert sc.view_rows(pick) == [2, 5] and sc.view_rows(",".join(pick)) == [2, 5]
+    assert np.allclose(sc.views[sc.view_rows("89/4.899")[0]], (89.0, 4.899))
+    with pytest.raises(KeyError, match="no view 89/3.*its views: 0/0"):
+        sc.view_rows(["0/0", "89/3"])

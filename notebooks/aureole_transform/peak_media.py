@@ -34,8 +34,8 @@ mod, paths = sys.argv[1], int(sys.argv[2])
 a, e = os.environ.get("SCENE", "desert:20").split(":")
 sc = bt.Scene(a, float(e), os.environ.get("TRUTH_CACHE", ".cache/truth"))
 V = os.environ.get("VIEWS", "70/5.321,64/0,60/0,75/0,67/0,30/0,70/21.298").split(",")
-keep = [i for i, v in enumerate(sc.views) if f"{v[0]:g}/{v[1]:g}" in V]
-dirs, names = sc.dirs[keep], [f"{sc.views[i][0]:g}/{sc.views[i][1]:g}" for i in keep]
+keep = sc.view_rows(V)
+dirs, names = sc.dirs[keep], [bt.view_label(sc.views[i]) for i in keep]
 fin = QUALITIES["final"].settings
 wl = float(os.environ.get("WL", 450))
 

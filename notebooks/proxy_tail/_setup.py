@@ -16,7 +16,7 @@ def one_view(scene, view, wi):
     its coarse proxy, sun direction, observer at the ground)."""
     a, e = scene.split(":")
     sc = bt.Scene(a, float(e), os.environ.get("TRUTH_CACHE", ".cache/truth"))
-    k = [i for i, v in enumerate(sc.views) if f"{v[0]:g}/{v[1]:g}" == view][0]
+    k = sc.view_rows([view])[0]
     prof = sc.mc_profile()
     med = mcm._Medium(prof, np.array([wi]))
     sun = sun_direction(sc.elev, bt.SUN_AZIMUTH).astype(float).reshape(3)

@@ -30,4 +30,4 @@ for i, wl in enumerate(bt.MC_WAVELENGTHS_NM):
 print(f"paths A {a['n'].min()}..{a['n'].max()}, B {b['n'].min()}..{b['n'].max()}")
 for k in np.argsort(-np.abs(z).max(axis=1))[:6]:
     v = a["views"][k]
-    print(f"  {v[0]:g}/{v[1]:g}: B/A - 1 {np.round(100 * r[k], 2)} %, z {np.round(z[k], 1)}")
+    print(f"  {bt.view_label(v)}: B/A - 1 {np.round(100 * r[k], 2)} %, z {np.round(z[k], 1)}")

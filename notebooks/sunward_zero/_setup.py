@@ -50,7 +50,7 @@ def truth_and_base(sc):
 
 def view(sc, name):
     """'89/4.899' -> (its index in the scene's view set, its unit direction)."""
-    i = [k for k, v in enumerate(sc.views) if f"{v[0]:g}/{v[1]:g}" == name][0]
+    i = sc.view_rows([name])[0]
     return i, sc.dirs[i] / np.linalg.norm(sc.dirs[i])
 
 

@@ -9,7 +9,7 @@ import _setup as su  # noqa: E402
 from skymodel.render.marcher import SkyMarcher  # noqa: E402
 scene = sys.argv[1]; views = sys.argv[2].split(","); var = sys.argv[3] if len(sys.argv) > 3 else ""
 sc, prof, wl, idx = su.scene(scene)
-keep = [i for i, v in enumerate(sc.views) if f"{v[0]:g}/{v[1]:g}" in views]
+keep = sc.view_rows(views)
 m = su.marcher(sc, prof, **su.bt._parse_variant(var))
 rec = {}
 orig_a = SkyMarcher._aureole_gather
@@ -26,6 +26,6 @@ for i in keep:
     r = m.radiance(sc.dirs[i:i+1])
     aur = rec["aur"][0].reshape(-1, len(wl))[0]; ms = rec["ms"][0].reshape(-1, len(wl))[0]
     tot = r.radiance[0]
-    print(f"{sc.views[i][0]:g}/{sc.views[i][1]:g}: total " + " ".join(f"{tot[j]/norm[k]:.4g}" for k, j in enumerate(idx)))
+    print(f"{su.bt.view_label(sc.views[i])}: total " + " ".join(f"{tot[j]/norm[k]:.4g}" for k, j in enumerate(idx)))
     for name, x in (("single", r.single[0]), ("ms src", ms), ("aureole", aur), ("rest mult", r.multiple[0] - ms - aur), ("ground", r.ground[0])):
         print(f"   {name:10s} " + " ".join(f"{100*x[j]/tot[j]:6.1f}%" for j in idx))

@@ -40,6 +40,6 @@ for g in groups:
         d, d_se = dm_mc["mean"][j] / e0[0], dm_mc["se"][j] / e0[0]
         t = truth[i]
         f = lambda x: "/".join(f"{100 * y:+.1f}" for y in x)  # noqa: E731
-        print(f"{v[0]:g}/{v[1]:g} | {f((t - d) / t)} | {f(np.hypot(truth_se[i], d_se) / t)} | "
+        print(f"{bt.view_label(v)} | {f((t - d) / t)} | {f(np.hypot(truth_se[i], d_se) / t)} | "
               f"{f((fin[i] - dm_m['r'][j]) / t)} | {f(dm_m['r'][j] / d - 1)} | "
               + "/".join(f"{1e3 * y:.3f}" for y in t - d) + " | " + "/".join(f"{1e3 * y:.3f}" for y in fin[i] - dm_m["r"][j]))

@@ -19,9 +19,9 @@ for t, r in rs.items():
     st = truth_statistics(r, truth, se, sc.angle)
     print(f"{t}: median " + "/".join(f"{100*x:.2f}" for x in st["median"]) + " (+- " + "/".join(f"{100*x:.2f}" for x in st["median_noise"]) + ")"
           + " mean " + "/".join(f"{100*x:+.2f}" for x in st["mean_signed"]), end="")
-    print("  worst " + "/".join(f"{100*x:+.2f}" for x in st["worst"]) + " at " + ", ".join(sorted({f"{sc.views[i][0]:g}/{sc.views[i][1]:g}" for i in st["worst_index"]})))
+    print("  worst " + "/".join(f"{100*x:+.2f}" for x in st["worst"]) + " at " + ", ".join(sorted({bt.view_label(sc.views[i]) for i in st["worst_index"]})))
 if "-v" in sys.argv:
     print("view | angle | " + " | ".join(tags) + " | se")
     for i, v in enumerate(sc.views):
-        print(f"{v[0]:g}/{v[1]:g} | {sc.angle[i]:.1f} | " + " | ".join("/".join(f"{100*x:+.2f}" for x in rs[t][i] / truth[i] - 1) for t in tags)
+        print(f"{bt.view_label(v)} | {sc.angle[i]:.1f} | " + " | ".join("/".join(f"{100*x:+.2f}" for x in rs[t][i] / truth[i] - 1) for t in tags)
               + " | " + "/".join(f"{100*x:.2f}" for x in se[i] / truth[i]))

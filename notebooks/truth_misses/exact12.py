@@ -28,5 +28,5 @@ for name in sys.argv[1].split(","):
     np.savez(f"{OUT}/final_exact_{sc.name}.npz", r8=out[8.0], r12=out[12.0], views=sc.views, angle=sc.angle)
     d = out[12.0] / out[8.0] - 1
     for i in np.flatnonzero(np.any(np.abs(d) > 1e-6, axis=1)):
-        print(f"  {sc.views[i][0]:g}/{sc.views[i][1]:g} ({sc.angle[i]:.1f} deg from sun): 12 vs 8: "
+        print(f"  {bt.view_label(sc.views[i])} ({sc.angle[i]:.1f} deg from sun): 12 vs 8: "
               + "/".join(f"{100*x:+.2f}" for x in d[i]) + " %", flush=True)

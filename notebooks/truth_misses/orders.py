@@ -50,7 +50,7 @@ dm = args[6] == "dm"
 a, e = scene.split(":")
 sc = bt.Scene(a, float(e), os.environ.get("TRUTH_CACHE", ".cache/truth"))
 if os.environ.get("VIEWS"):  # a subset of the view set, e.g. VIEWS=0/0,70/45 (the file names get its hash)
-    keep = [i for i, v in enumerate(sc.views) if f"{v[0]:g}/{v[1]:g}" in os.environ["VIEWS"].split(",")]
+    keep = sc.view_rows(os.environ["VIEWS"])
     sc.views, sc.dirs, sc.angle = sc.views[keep], sc.dirs[keep], sc.angle[keep]
     sc.name += "_v" + hashlib.sha1(os.environ["VIEWS"].encode()).hexdigest()[:6]
 atm = bt.atmosphere(a) if albedo == "" else Atmosphere(location=a, month=bt.MONTH, aod550=bt.AEROSOLS[a],
@@ -103,5 +103,5 @@ print(f"median |rel| " + "/".join(f"{100 * x:.2f}" for x in np.median(np.abs(rel
 print("view | angle | marcher/MC-1 (%, 450/550/650) | MC se (%) | multiple share of marcher (%)")
 ms = (sr.multiple[:, idx] / norm) / r
 for i, v in enumerate(sc.views):
-    print(f"{v[0]:g}/{v[1]:g} | {sc.angle[i]:.1f} | " + "/".join(f"{100 * x:+.2f}" for x in rel[i]) + " | "
+    print(f"{bt.view_label(v)} | {sc.angle[i]:.1f} | " + "/".join(f"{100 * x:+.2f}" for x in rel[i]) + " | "
           + "/".join(f"{100 * x:.2f}" for x in se[i] / mc[i]) + " | " + "/".join(f"{100 * x:.0f}" for x in ms[i]))

@@ -46,7 +46,7 @@ for v in [""] + [x for x in variants.split(";") if x]:
     print(f"  marcher {v or 'final'}: {time.perf_counter() - t:.0f} s", flush=True)
 print(f"Rayleigh+ozone, sun {sun:g}, MC {int(z['n'])} paths: view | " + " | ".join(rows) + " (%, 450/550/650) | MC se")
 for i, v in enumerate(views):
-    print(f"{v[0]:g}/{v[1]:g} | " + " | ".join("/".join(f"{100*x:+.2f}" for x in r[i] / truth[i] - 1) for r in rows.values())
+    print(f"{bt.view_label(v)} | " + " | ".join("/".join(f"{100*x:+.2f}" for x in r[i] / truth[i] - 1) for r in rows.values())
           + " | " + "/".join(f"{100*x:.2f}" for x in se[i] / truth[i]))
 for k, r in rows.items():
     rel = r / truth - 1
