@@ -285,15 +285,28 @@ def _trace_chunk(task):
     return rows, n, seed, res
 
 
-def split_batches(batches, workers, seed):
-    """Each batch (rows, paths) as ``workers`` chunks of paths (in thousands) with their own
-    seeds from ``seed`` on, so a round keeps every worker busy: [(rows, paths, seed)]."""
+#: Longest a chunk of a round should take (seconds of one core at the directions' cost per
+#: path): the run is saved and its budget checked after every chunk.
+CHUNK_S = 300.0
+
+
+def split_batches(batches, workers, seed, seconds_per_path=None, chunk_s=CHUNK_S):
+    """Each batch (rows, paths) as ``workers`` chunks of whole thousands of paths (the batch's
+    paths rounded up to thousands, shared as evenly as that allows) with their own seeds
+    from ``seed`` on, so a round keeps every worker busy, and more chunks where one would
+    take longer than ``chunk_s`` at ``seconds_per_path`` (per direction; None: no limit):
+    [(rows, paths, seed)]."""
     tasks = []
     for rows, n in batches:
-        k = max(1, min(workers, n // 1000))
-        per = -(-n // (k * 1000)) * 1000
-        for _ in range(k):
-            tasks.append((rows, per, seed))
+        m = max(1, -(-int(n) // 1000))  # thousands
+        k = min(m, max(1, workers))
+        if seconds_per_path is not None:
+            sp = np.asarray(seconds_per_path, float)
+            cost = n * (float(sp) * len(rows) if sp.ndim == 0 else float(np.sum(sp[rows])))
+            k = min(m, max(k, int(np.ceil(cost / chunk_s))))
+        q, r = divmod(m, k)
+        for i in range(k):
+            tasks.append((rows, 1000 * (q + (i < r)), seed))
             seed += 1
     return tasks
 
@@ -301,8 +314,10 @@ def split_batches(batches, workers, seed):
 def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers=1, seed_from=1):
     """Trace ``scene`` until every direction's relative standard error is ``target_se`` (or
     it has ``max_paths`` paths, or ``budget_s`` wall-clock seconds have passed), saving after
-    every batch. ``workers`` > 1 splits each round's batches into chunks with their own
-    seeds over that many processes (forked; each process single-threaded numpy); the run's
+    every chunk of a round (:func:`split_batches`: at most :data:`CHUNK_S` of one core each,
+    so a long round is not lost when the run is stopped). ``workers`` > 1 splits each round's
+    batches into chunks with their own seeds over that many processes (forked; each process
+    single-threaded numpy); the run's
     ``seconds`` counts the processes' tracing time (CPU-seconds), its plan the wall-clock.
     Seeds start at ``seed_from`` or after the run's last, whichever is larger: a run traced
     elsewhere from other seeds can be pooled with this one (:func:`pool_runs`)."""
@@ -347,8 +362,7 @@ def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers
             batches = plan_round(mc["n"], more, todo, per_dir, left)
             if not batches:
                 break
-            tasks = split_batches(batches, workers, seed) if pool else [(r, n, seed + i)
-                                                                         for i, (r, n) in enumerate(batches)]
+            tasks = split_batches(batches, max(1, workers), seed, per_dir)
             seed = max(t[2] for t in tasks) + 1
             done = pool.imap_unordered(_trace_chunk, tasks) if pool else map(_trace_chunk, tasks)
             for rows, n, s, res in done:

@@ -192,8 +192,14 @@ def test_a_parallel_round_pools_chunks_with_their_own_seeds(tmp_path, monkeypatc
     pooled estimate agrees with a serial run of other seeds within their noise."""
     bt = _bench_truth(monkeypatch)
     tasks = bt.split_batches([(np.array([0, 1]), 7000), (np.array([2]), 1500)], 4, 11)
-    assert [t[1] for t in tasks] == [2000] * 4 + [2000]
-    assert [t[2] for t in tasks] == [11, 12, 13, 14, 15]
+    assert [t[1] for t in tasks] == [2000, 2000, 2000, 1000, 1000, 1000]  # 7000 and 2000 (from 1500) shared
+    assert [t[2] for t in tasks] == [11, 12, 13, 14, 15, 16]
+    # a chunk takes at most CHUNK_S at the directions' cost per path (a long round is saved
+    # and its budget checked chunk by chunk): 7000 paths of 2 directions at 0.05 s, 700 s
+    cost = np.array([0.05, 0.05, 0.01])
+    tasks = bt.split_batches([(np.array([0, 1]), 7000), (np.array([2]), 1500)], 1, 11, cost, chunk_s=300.0)
+    assert [t[1] for t in tasks] == [3000, 2000, 2000, 2000] and [t[2] for t in tasks] == [11, 12, 13, 14]
+    assert all(t[1] * 0.1 <= 300.0 for t in tasks[:3])
 
     class Two(bt.Scene):  # two views: no committed run matches them
         def __init__(self, cache):
