@@ -15,7 +15,7 @@ the profile's solar irradiance at the wavelength (the two profiles' band-average
 differ slightly; the transfer is linear in it).
 
 MC: the NEE estimator with the sun up (``ESTIMATOR_SUN_UP``), the ``"proxy"`` estimator (line
-integrals toward the sunlit air, densities from a coarse copy of the profile) below the
+integrals toward the sunlit air, densities from tabulated optical depths) below the
 horizon (``ESTIMATOR_LOW_SUN``, sun < ``LOW_SUN_DEG``); ``--estimator`` overrides both. For
 the desert with ``sun_guide`` (new directions partly drawn around the sun: the coarse dust's
 forward peak, p(0) ~ 2e4 sr^-1, makes plain NEE heavy-tailed). Paths per direction from a pilot, for a relative standard error of
