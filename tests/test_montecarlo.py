@@ -621,3 +621,51 @@ def test_sun_guide_bad_values_are_rejected(profile):
             trace_radiance(profile, [[0.0, 0.0, 1.0]], 10.0, 0.0, sun_guide=bad)
     with pytest.raises(SkymodelInputError, match="sun_guide"):
         trace_radiance(profile, [[0.0, 0.0, 1.0]], 10.0, 0.0, sun_guide=0.2, estimator="sunlit")
+
+
+def test_dark_sun_rays_are_rouletted_without_bias(profile):
+    """NEE with a low sun: rays the table reads darker than exp(-25) are traced with
+    probability 1/16 and weighted 16 (expectation exact), the others exactly; rays into the
+    ground are 0 without a draw; no dark ray, no random number (the stream of a sky with
+    the sun up is unchanged)."""
+    from skymodel.validation.montecarlo import _DARK_KEEP, _DARK_TAU, _DepthTable, _sun_transmittance
+
+    med = _Medium(profile, np.array([0]))
+    table = _DepthTable(med)
+    sun = sun_direction(-0.5, 0.0).reshape(3)
+    rng = np.random.default_rng(9)
+    m = 3000
+    h = rng.uniform(0.0, 3000.0, m)
+    az = rng.uniform(0.0, 2.0 * np.pi, m)
+    dist = rng.uniform(0.0, 300e3, m)  # points up to 300 km from the observer, around it
+    ang = dist / med.R
+    p = (med.R + h)[:, None] * np.column_stack([np.sin(ang) * np.cos(az), np.sin(ang) * np.sin(az), np.cos(ang)])
+    w = np.zeros(m, dtype=int)
+    tau, blocked = med.optical_depth_to_top(p, sun, w)
+    exact = np.exp(-tau)
+    t_tab, _ = table.optical_depth_to_top(p, sun, w)
+    dark = (t_tab > _DARK_TAU) & ~blocked
+    lit = (t_tab <= _DARK_TAU) & ~blocked
+    assert dark.sum() > 100 and lit.sum() > 100 and blocked.sum() > 100
+    assert np.array_equal(_sun_transmittance(med, p, w, sun, rng), exact)  # no table: exact
+    runs = np.array([_sun_transmittance(med, p, w, sun, np.random.default_rng(s), table) for s in range(400)])
+    assert np.all(runs[:, lit] == exact[lit]) and np.all(runs[:, blocked] == 0.0)
+    d = runs[:, dark]
+    assert np.all((d == 0.0) | np.isclose(d, exact[dark] / _DARK_KEEP, rtol=1e-12))
+    kept = np.mean(d > 0.0)
+    assert abs(kept - _DARK_KEEP) < 5.0 * np.sqrt(_DARK_KEEP / d.size)
+    assert np.all(exact[dark] < np.exp(-_DARK_TAU + 0.1))
+    g = np.random.default_rng(3)  # no dark ray: no draw
+    _sun_transmittance(med, p[lit], w[lit], sun, g, table)
+    assert g.random() == np.random.default_rng(3).random()
+
+
+def test_nee_with_dark_rays_rouletted_agrees_with_plain_nee(profile, monkeypatch):
+    """The same radiances with the dark-ray roulette (sun on the horizon) and without it."""
+    import skymodel.validation.montecarlo as mcm
+
+    dirs = direction_from_angles([0.0, 85.0, 89.0, 88.0], [0.0, 180.0, 5.0, 90.0])
+    a = trace_radiance(profile, dirs, 0.0, 180.0, n_paths=6000, seed=41)
+    monkeypatch.setattr(mcm, "_DARK_SUN_DEG", -90.0)
+    b = trace_radiance(profile, dirs, 0.0, 180.0, n_paths=6000, seed=42)
+    _assert_estimators_agree(a, b)

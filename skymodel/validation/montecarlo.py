@@ -130,7 +130,14 @@ over paths divided by sqrt(n_paths).
 
 Cost and variance: the exact sun-ray optical depth costs O(number of profile pieces)
 per event (~9 us for a 401-point grid) and is most of the run time; tracking is the
-rest. A view through thin air (the zenith, or anything from high up) sees few real
+rest. With the sun below 3 degrees most vertices low in the air see a black sun (desert AOD
+0.5 at sun 0: 60 % of the sun rays deeper than tau 30): NEE then reads each sun ray's depth
+from a table first (:class:`_DepthTable`) and traces the rays darker than exp(-25) only
+with probability 1/16, weighted 16 (:func:`_sun_transmittance`; unbiased). Side by side
+(2026-11-27, five views 0/0, 85/0, 89/4.9, 89/90, 88/135, 40 000 paths, four or five seeds,
+both cores busy): desert AOD 0.5 at sun 0 56 -> 28 us per path, rural AOD 0.2 38 -> 32 us,
+the per-path variance the same (efficiency 1.6-2.9x and 1.0-1.4x per view and
+wavelength), the means within 2.3 combined standard errors. A view through thin air (the zenith, or anything from high up) sees few real
 collisions, so most of its paths contribute nothing and its relative error per path is
 ~1/sqrt(1 - exp(-tau_view)) larger than that of a slant view: ask for more paths there.
 """
@@ -647,12 +654,37 @@ def _roulette(med: _Medium, beta, D, Wl, sun, sun_guide, keep, rng):
     return beta, keep & survive
 
 
-def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng, sun_guide=0.0):
+def _sun_transmittance(med, P, w, sun, rng, table=None):
+    """exp(-tau) of the sun rays from points ``P`` (M, 3) at wavelength slots ``w`` (M,), the
+    optical depth exact. With a ``table`` (:class:`_DepthTable`, a low sun) the rays it reads
+    darker than exp(-:data:`_DARK_TAU`) are traced exactly only with probability
+    :data:`_DARK_KEEP` and then weighted 1 / :data:`_DARK_KEEP` (Russian roulette: the
+    expectation is the exact transmittance; what is dropped is below 1e-11 per ray), and the
+    rays that meet the ground are 0 without tracing (the same geometric test); the random
+    numbers are drawn for the dark rays only, so a sky without any keeps its random stream."""
+    if table is None:
+        tau, _ = med.optical_depth_to_top(P, sun, w)
+        return np.exp(-tau)
+    tau_t, blocked = table.optical_depth_to_top(P, sun, w)
+    dark = np.flatnonzero((tau_t > _DARK_TAU) & ~blocked)
+    kept = dark[rng.random(dark.size) < _DARK_KEEP] if dark.size else dark
+    rows = np.concatenate([np.flatnonzero(tau_t <= _DARK_TAU), kept])
+    out = np.zeros(P.shape[0])
+    if rows.size:
+        tau, _ = med.optical_depth_to_top(P[rows], sun, w[rows])
+        out[rows] = np.exp(-tau)
+        out[kept] /= _DARK_KEEP
+    return out
+
+
+def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng, sun_guide=0.0, table=None):
     """Trace one batch of paths; returns each path's summed contribution (W m^-2 sr^-1 nm^-1).
 
     ``sun_guide`` > 0: at air collisions the new direction comes from the mixture
     (1 - sun_guide) x the physical phase function + sun_guide x the aerosol phase function
-    centred on the sun direction (:func:`_guided_direction`), weighted by the exact ratio."""
+    centred on the sun direction (:func:`_guided_direction`), weighted by the exact ratio.
+    ``table``: the sun's transmittance at the vertices through :func:`_sun_transmittance`'s
+    roulette of the dark rays (a low sun)."""
     n = dirs.shape[0]
     contrib = np.zeros(n)
     R, top_r = med.R, med.R + med.top
@@ -683,8 +715,7 @@ def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng, sun_guide
             mu_sun = Dc @ sun
             ph = np.concatenate([med.rayleigh_phase(mu_sun, wc)[None], med.aerosol_phase(mu_sun, wc)])
             f = beta[ci] * (sig_sc * ph).sum(axis=0) / sig_t
-            tau, _ = med.optical_depth_to_top(Pc, sun, wc)
-            contrib[idx[ci]] += f * np.exp(-tau) * med.e_sun[wc]
+            contrib[idx[ci]] += f * _sun_transmittance(med, Pc, wc, sun, rng, table) * med.e_sun[wc]
             if sun_guide > 0.0:  # direction from the sun-guided mixture, exact weight
                 nxt_D[ci], wgt = _guided_direction(med, Dc, wc, sig_sc, sun, sun_guide, rng)
                 beta[ci] *= sig_s / sig_t * wgt
@@ -701,8 +732,8 @@ def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng, sun_guide
             lit = (mu0 > 0.0) & (a > 0.0)
             if np.any(lit):
                 li = gi[lit]
-                tau, _ = med.optical_depth_to_top(Pg[lit], sun, wg[lit])
-                contrib[idx[li]] += beta[li] * a[lit] / np.pi * mu0[lit] * np.exp(-tau) * med.e_sun[wg[lit]]
+                t_sun = _sun_transmittance(med, Pg[lit], wg[lit], sun, rng, table)
+                contrib[idx[li]] += beta[li] * a[lit] / np.pi * mu0[lit] * t_sun * med.e_sun[wg[lit]]
             beta[gi] *= a
             if sun_guide > 0.0:  # cosine-weighted mixed with the sun guide, exact weight
                 d_new, wgt = _guided_ground_bounce(med, nrm, wg, sun, sun_guide, rng)
@@ -738,6 +769,11 @@ _VIEW_LINE_INTERVALS = 256
 #: metres, as the exact one grazes the ground), and the intervals of a vertex line's density.
 _TABLE_ALTITUDES = 400
 _TABLE_DIRECTIONS = 256
+#: NEE with the sun below :data:`_DARK_SUN_DEG`: sun rays the table reads above this optical
+#: depth are traced exactly only with this probability (:func:`_sun_transmittance`).
+_DARK_SUN_DEG = 3.0
+_DARK_TAU = 25.0
+_DARK_KEEP = 1.0 / 16.0
 _TABLE_GROUND_M = 0.01
 _PROXY_LINE_INTERVALS = 16
 #: Fraction of line samples drawn uniformly over the line's sunlit length (defensive
@@ -1496,8 +1532,8 @@ def trace_radiance(profile, directions, sun_elevation_deg, sun_azimuth_deg, obse
     if not (0.0 <= sun_guide < 1.0) or (sun_guide > 0.0 and estimator == "sunlit"):
         raise SkymodelInputError("sun_guide", sun_guide, "0 <= sun_guide < 1 (> 0 only with estimator 'nee' or 'proxy')")
     if estimator == "nee":
-        def trace(*args):
-            return _trace_batch(*args, sun_guide=sun_guide)
+        def trace(*args, _table=None):
+            return _trace_batch(*args, sun_guide=sun_guide, table=_table)
     elif estimator == "sunlit":
         trace = _trace_batch_sunlit
 
@@ -1519,6 +1555,9 @@ def trace_radiance(profile, directions, sun_elevation_deg, sun_azimuth_deg, obse
         if estimator == "proxy":
             def trace(*args, _px=_DepthTable(med)):
                 return _trace_batch_sunlit(*args, proxy=_px, sun_guide=sun_guide)
+        elif estimator == "nee" and sun_elevation_deg < _DARK_SUN_DEG:  # many vertices see a black sun
+            def trace(*args, _table=_DepthTable(med)):
+                return _trace_batch(*args, sun_guide=sun_guide, table=_table)
         nw = wsel.size
         dir_chunk = max(1, _MAX_PATHS_PER_BATCH // (nw * n_paths))
         for d0 in range(0, n_dir, dir_chunk):
