@@ -137,15 +137,16 @@ with probability 1/16, weighted 16 (:func:`_sun_transmittance`; unbiased). Side 
 (2026-11-27, five views 0/0, 85/0, 89/4.9, 89/90, 88/135, 40 000 paths, four or five seeds,
 both cores busy): desert AOD 0.5 at sun 0 56 -> 28 us per path, rural AOD 0.2 38 -> 32 us,
 the per-path variance the same (efficiency 1.6-2.9x and 1.0-1.4x per view and
-wavelength), the means within 2.3 combined standard errors. A view through thin air (the zenith, or anything from high up) sees few real
-collisions, so most of its paths contribute nothing and its relative error per path is
+wavelength), the means within 2.3 combined standard errors.
+
+A view through thin air (the zenith, or anything from high up) sees few real collisions,
+so most of its paths contribute nothing and its relative error per path is
 ~1/sqrt(1 - exp(-tau_view)) larger than that of a slant view: ask for more paths there.
 """
 
 from __future__ import annotations
 
 import time
-import copy
 from dataclasses import dataclass
 from functools import partial
 
@@ -659,7 +660,7 @@ def _sun_transmittance(med, P, w, sun, rng, table=None):
     optical depth exact. With a ``table`` (:class:`_DepthTable`, a low sun) the rays it reads
     darker than exp(-:data:`_DARK_TAU`) are traced exactly only with probability
     :data:`_DARK_KEEP` and then weighted 1 / :data:`_DARK_KEEP` (Russian roulette: the
-    expectation is the exact transmittance; what is dropped is below 1e-11 per ray), and the
+    expectation is the exact transmittance, and a rouletted ray carries below 1.4e-11), and the
     rays that meet the ground are 0 without tracing (the same geometric test); the random
     numbers are drawn for the dark rays only, so a sky without any keeps its random stream."""
     if table is None:
@@ -769,13 +770,13 @@ _VIEW_LINE_INTERVALS = 256
 #: metres, as the exact one grazes the ground), and the intervals of a vertex line's density.
 _TABLE_ALTITUDES = 400
 _TABLE_DIRECTIONS = 256
+_TABLE_GROUND_M = 0.01
+_PROXY_LINE_INTERVALS = 16
 #: NEE with the sun below :data:`_DARK_SUN_DEG`: sun rays the table reads above this optical
 #: depth are traced exactly only with this probability (:func:`_sun_transmittance`).
 _DARK_SUN_DEG = 3.0
 _DARK_TAU = 25.0
 _DARK_KEEP = 1.0 / 16.0
-_TABLE_GROUND_M = 0.01
-_PROXY_LINE_INTERVALS = 16
 #: Fraction of line samples drawn uniformly over the line's sunlit length (defensive
 #: mixture: keeps the density positive wherever the integrand may be).
 _LINE_DEFENSIVE = 0.1
@@ -1531,11 +1532,6 @@ def trace_radiance(profile, directions, sun_elevation_deg, sun_azimuth_deg, obse
     sun_guide = float(sun_guide)
     if not (0.0 <= sun_guide < 1.0) or (sun_guide > 0.0 and estimator == "sunlit"):
         raise SkymodelInputError("sun_guide", sun_guide, "0 <= sun_guide < 1 (> 0 only with estimator 'nee' or 'proxy')")
-    if estimator == "nee":
-        def trace(*args, _table=None):
-            return _trace_batch(*args, sun_guide=sun_guide, table=_table)
-    elif estimator == "sunlit":
-        trace = _trace_batch_sunlit
 
     n_wl = profile.n_wavelengths
     if wavelength_batch is None:
@@ -1555,8 +1551,10 @@ def trace_radiance(profile, directions, sun_elevation_deg, sun_azimuth_deg, obse
         if estimator == "proxy":
             def trace(*args, _px=_DepthTable(med)):
                 return _trace_batch_sunlit(*args, proxy=_px, sun_guide=sun_guide)
-        elif estimator == "nee" and sun_elevation_deg < _DARK_SUN_DEG:  # many vertices see a black sun
-            def trace(*args, _table=_DepthTable(med)):
+        elif estimator == "sunlit":
+            trace = _trace_batch_sunlit
+        else:  # nee; with a low sun many vertices see a black sun: the table's roulette
+            def trace(*args, _table=_DepthTable(med) if sun_elevation_deg < _DARK_SUN_DEG else None):
                 return _trace_batch(*args, sun_guide=sun_guide, table=_table)
         nw = wsel.size
         dir_chunk = max(1, _MAX_PATHS_PER_BATCH // (nw * n_paths))
