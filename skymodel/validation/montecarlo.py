@@ -113,8 +113,8 @@ depths were first those of a 26-piece copy of the profile (every 16th edge); sin
 2026-11-27 they are read from a table (:class:`_DepthTable`: O(1) per ray, within 0.007 of
 the exact depths), and a vertex's line is not integrated where the vertex cannot send the
 path (a guided draw into the ground at a bounce: weight 0). Side by side against the
-coarse copy (the same five views 0/0, 85/0, 89/0, 89/90, 88/135, seeds 21-24, one process
-each, both cores busy): rural AOD 0.2 at sun -4 deg 504 -> 380 us per path (6000 paths
+coarse copy (notebooks/proxy_tail/side_by_side.py against a worktree at 182366f: the same
+five views 0/0, 85/0, 89/0, 89/90, 88/135, seeds 21-24, one process each, both cores busy): rural AOD 0.2 at sun -4 deg 504 -> 380 us per path (6000 paths
 per seed), desert AOD 0.5 with ``sun_guide`` 0.2 621 -> 446 us (10 000); efficiency (1 /
 (se^2 x time)) per view and wavelength up by a median 1.44x (rural) and 1.54x (desert;
 one heavy path at the desert's zenith at 650 nm in one run: over eight more seeds of that
@@ -134,8 +134,8 @@ rest. With the sun below 3 degrees most vertices low in the air see a black sun 
 0.5 at sun 0: 60 % of the sun rays deeper than tau 30): NEE then reads each sun ray's depth
 from a table first (:class:`_DepthTable`) and traces the rays darker than exp(-25) only
 with probability 1/16, weighted 16 (:func:`_sun_transmittance`; unbiased). Side by side
-(2026-11-27, five views 0/0, 85/0, 89/4.9, 89/90, 88/135, 40 000 paths, four or five seeds,
-both cores busy): desert AOD 0.5 at sun 0 56 -> 28 us per path, rural AOD 0.2 38 -> 32 us,
+(2026-11-27, notebooks/proxy_tail/side_by_side.py against 182366f: five views 0/0, 85/0,
+89/4.9, 89/90, 88/135, 40 000 paths, seeds 53-57 / 54-57, both cores busy): desert AOD 0.5 at sun 0 56 -> 28 us per path, rural AOD 0.2 38 -> 32 us,
 the per-path variance the same (efficiency 1.6-2.9x and 1.0-1.4x per view and
 wavelength), the means within 2.3 combined standard errors.
 
