@@ -547,16 +547,16 @@ def _plot(rows, path):
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharex=True)
     colours = dict(preview="C0", final="C1", reference="C2")
-    for ax, key, tol, title in ((axes[0], "median", TOL_MEDIAN, "median |rel| over the sky"),
-                                (axes[1], "worst", TOL_WORST, "worst |rel| (outside disc + 2°)")):
+    for ax, key, noise, tol, title in ((axes[0], "median", "median_noise", TOL_MEDIAN, "median |rel| over the sky"),
+                                       (axes[1], "worst", "noise_max", TOL_WORST, "worst |rel| (outside disc + 2°)")):
         for q in QUALITY_NAMES:
             rs = [r for r in rows if r["quality"] == q]
             if not rs:
                 continue
             x = np.array([r["seconds"] for r in rs])
             y = np.array([100 * max(abs(v) for v in r["stats"][key]) for r in rs])
-            # rows whose truth is noisier than a third of the median tolerance: faint crosses
-            noisy = np.array([max(r["stats"]["median_noise"]) > TOL_MEDIAN / 3 for r in rs])
+            # rows whose truth is noisier than a third of the panel's tolerance: faint crosses
+            noisy = np.array([max(r["stats"][noise]) > tol / 3 for r in rs])
             ax.scatter(x[~noisy], y[~noisy], c=colours[q], label=q, marker="o")
             ax.scatter(x[noisy], y[noisy], c=colours[q], marker="x", alpha=0.4)
             for r, xx, yy, nz in zip(rs, x, y, noisy):
