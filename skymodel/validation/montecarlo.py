@@ -114,8 +114,9 @@ depths were first those of a 26-piece copy of the profile (every 16th edge); sin
 the exact depths), and a vertex's line is not integrated where the vertex cannot send the
 path (a guided draw into the ground at a bounce: weight 0). Side by side against the
 coarse copy (notebooks/proxy_tail/side_by_side.py against a worktree at 182366f: the same
-five views 0/0, 85/0, 89/0, 89/90, 88/135, seeds 21-24, one process each, both cores busy): rural AOD 0.2 at sun -4 deg 504 -> 380 us per path (6000 paths
-per seed), desert AOD 0.5 with ``sun_guide`` 0.2 621 -> 446 us (10 000); efficiency (1 /
+five views 0/0, 85/0, 89/0, 89/90, 88/135, seeds 21-24, one process each, both cores
+busy): rural AOD 0.2 at sun -4 deg 504 -> 380 us per path (6000 paths per seed), desert
+AOD 0.5 with ``sun_guide`` 0.2 621 -> 446 us (10 000); efficiency (1 /
 (se^2 x time)) per view and wavelength up by a median 1.44x (rural) and 1.54x (desert;
 one heavy path at the desert's zenith at 650 nm in one run: over eight more seeds of that
 view alone the median standard error at 650 nm is 2.39 % before, 2.00 % after), the means
@@ -186,6 +187,14 @@ class MCResult:
 # --------------------------------------------------------------------------------------
 # The medium as pieces linear in altitude
 # --------------------------------------------------------------------------------------
+
+
+def _meets_ground(r, pd, R):
+    """Whether rays from points at radius ``r`` (metres) with ``pd`` = p . d (the point's
+    radius times the cosine to the local vertical) meet a planet of radius ``R``: they
+    descend and their tangent radius is at most R (a tangent ray counts as blocked, as in
+    rays.py). The one test of :class:`_Medium` and :class:`_DepthTable`."""
+    return (pd <= 0.0) & ((r - R) * (r + R) - pd * pd <= 0.0)
 
 
 class _Medium:
@@ -376,7 +385,7 @@ class _Medium:
         out = np.empty(m) if per_wl else np.empty((m, self.gamma.size))
         r = np.sqrt(np.einsum("ij,ij->i", p, p))
         pd = np.einsum("ij,ij->i", p, direction)
-        blocked = (pd <= 0.0) & ((r - self.R) * (r + self.R) - pd * pd <= 0.0)  # tangent: blocked, as rays.py
+        blocked = _meets_ground(r, pd, self.R)
         chunk = max(1, _NEE_CHUNK_ELEMENTS // (self.n_pieces + 1))
         for s0 in range(0, m, chunk):
             sl = slice(s0, min(m, s0 + chunk))
@@ -1028,7 +1037,7 @@ class _DepthTable:
         direction = np.broadcast_to(np.asarray(direction, dtype=float), p.shape)
         r = np.sqrt(_rowdot(p, p))
         pd = _rowdot(p, direction)
-        blocked = (pd <= 0.0) & ((r - self.R) * (r + self.R) - pd * pd <= 0.0)  # as _Medium's
+        blocked = _meets_ground(r, pd, self.R)  # the exact medium's test
         rc = np.clip(r, self.R, self.R + self.top)
         mu = np.clip(pd / r, -1.0, 1.0)
         # the climbing ray (mirrored where it descends) from the point
