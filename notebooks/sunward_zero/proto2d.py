@@ -63,7 +63,7 @@ for vname in views:
     tau = np.cumsum(ext * dt[:, None], axis=0) - 0.5 * ext * dt[:, None]
     tv = np.exp(-tau)
     STASH.clear()
-    keep = np.flatnonzero((h < pp.MAX_ALTITUDE_M) & (tv[:, -1] > 1e-12))
+    keep = np.flatnonzero((h < 10_000.0) & (tv[:, -1] > 1e-12))  # peak_paths' altitude bound then
     bms(m.sun_table, prof, med, m.medium.cutoff_deg, h[keep], np.degrees(e_sun[keep])[:, None])
     S = h.size
     # lines per regime (S, X, P)
