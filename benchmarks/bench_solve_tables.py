@@ -2,10 +2,12 @@
 peak paths' columns) and its multiple-scattering solve, per quality preset.
 
     python benchmarks/bench_solve_tables.py [--qualities preview,final] [--repeat 3] [--peak-paths 1,0]
+                                            [--location rural|desert]
 
-Solves ``Atmosphere(location="rural", month=6, aod550=0.2)`` on the default 81-wavelength
-grid (:func:`skymodel.render.marcher.solve_sky`, nothing cached) ``--repeat`` times per
-preset and per ``--peak-paths`` setting, alternated, after one solve not counted, and prints
+Solves ``Atmosphere(location="rural", month=6, aod550=0.2)`` (``--location desert``: AOD 0.5,
+coarse dust, the 12-degree cone) on the default 81-wavelength grid
+(:func:`skymodel.render.marcher.solve_sky`, nothing cached) ``--repeat`` times per preset and
+per ``--peak-paths`` setting, alternated, after one solve not counted, and prints
 each solve's ``timings`` (``tables_s``, ``multiple_scattering_s``) and the wall time, with
 their medians. Only public names are used, so the same file measures an older revision
 (put that revision's tree first on ``PYTHONPATH``) for a before/after in one session.
@@ -24,6 +26,8 @@ def main(argv=None):
     ap.add_argument("--qualities", default="preview,final")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--peak-paths", default="1", help="comma list of 1/0: MarchSettings.peak_paths")
+    ap.add_argument("--location", default="rural", choices=("rural", "desert"),
+                    help="the sky solved: rural AOD 0.2 or desert AOD 0.5 (June)")
     args = ap.parse_args(argv)
 
     import skymodel
@@ -31,8 +35,9 @@ def main(argv=None):
     from skymodel.render.marcher import solve_sky
     from skymodel.render.quality import quality_settings
 
-    profile = Atmosphere(location="rural", month=6, aod550=0.2).optical_profile()
-    print(f"skymodel from {skymodel.__file__}; {profile.wavelengths_nm.size} wavelengths")
+    aod = {"rural": 0.2, "desert": 0.5}[args.location]
+    profile = Atmosphere(location=args.location, month=6, aod550=aod).optical_profile()
+    print(f"skymodel from {skymodel.__file__}; {args.location} AOD {aod}; {profile.wavelengths_nm.size} wavelengths")
     for q in args.qualities.split(","):
         runs = {flag: [] for flag in args.peak_paths.split(",")}
         settings = {flag: replace(quality_settings(q), peak_paths=flag == "1") for flag in runs}
