@@ -19,14 +19,14 @@ from dataclasses import replace
 
 import numpy as np
 
-sys.path[:0] = ["benchmarks"]
+sys.path[:0] = ["benchmarks", os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "twilight_beam")]
 import bench_truth as bt  # noqa: E402
-from skymodel.render.aureole import peak_part  # noqa: E402
 from skymodel.render.marcher import SkyMarcher  # noqa: E402
-from skymodel.render.medium import delta_m_cone_deg, truncate_forward_peak  # noqa: E402
+from skymodel.render.medium import delta_m_cone_deg  # noqa: E402
 from skymodel.render.quality import QUALITIES  # noqa: E402
 from skymodel.validation.delta_m_medium import delta_m_profile  # noqa: E402
 from skymodel.validation.montecarlo import trace_radiance  # noqa: E402
+from _beam import dust_peak_only  # noqa: E402  (the dust's cut peak alone)
 
 OUT = os.environ.get("TRUTH_MISSES_OUT", ".cache/truth_misses")
 os.makedirs(OUT, exist_ok=True)
@@ -44,14 +44,7 @@ def modify(p):
     if mod == "noray":
         return p.with_(rayleigh_scattering=p.rayleigh_scattering * 1e-6)
     if mod == "peakonly":
-        f, _ = truncate_forward_peak(p.aerosol_phase_angles_deg, p.aerosol_phase, 12.0)
-        ph = p.aerosol_phase.copy()
-        ph[0] = peak_part(p.aerosol_phase_angles_deg, p.aerosol_phase, 12.0)[0] / f[0][None, :]
-        s = p.aerosol_scattering_by_regime.copy()
-        s[0] *= f[0][None, :]
-        s[1:] *= 1e-6
-        return p.with_(rayleigh_scattering=p.rayleigh_scattering * 1e-6, aerosol_phase=ph,
-                       aerosol_scattering_by_regime=s)
+        return dust_peak_only(p).with_(rayleigh_scattering=p.rayleigh_scattering * 1e-6)
     return p
 
 

@@ -5,7 +5,8 @@ dust's scattering, and what the dust does to the sky is the bent beam's (and the
 alone; the tracer scatters exactly. One wavelength, `final`, every direction exact.
 
 usage: peak_only.py PATHS TAG [NAME=VALUE ...]   (env SCENE=desert:-4, WL=650, VIEWS=0/0,30/0,...,
-                                                 SOLVER=1 as variant_pp.py; NAME=VALUE as there)
+                                                 SOLVER=1 as variant_pp.py; NAME=VALUE as there;
+                                                 VARIANT="peak_diffuse=0": MarchSettings changed from final)
 The tracer's run (seed 11, bench_truth's estimator and sun_guide 0.2) is cached in $TRUTH_MISSES_OUT.
 """
 import hashlib
@@ -19,27 +20,15 @@ import numpy as np
 sys.path[:0] = ["benchmarks"]
 import bench_truth as bt  # noqa: E402
 import skymodel.render.marcher as mm  # noqa: E402
-import skymodel.render.peak_paths as pp  # noqa: E402
-from skymodel.numerics import linear_interp_matrix  # noqa: E402
-from skymodel.render.aureole import peak_part  # noqa: E402
-from skymodel.render.medium import truncate_forward_peak  # noqa: E402
 from skymodel.render.quality import QUALITIES  # noqa: E402
 from skymodel.validation.montecarlo import trace_radiance  # noqa: E402
+from _beam import beam_in_solver_if_asked, dust_peak_only, set_constants  # noqa: E402
 
 OUT = os.environ.get("TRUTH_MISSES_OUT", ".cache/truth_misses")
 os.makedirs(OUT, exist_ok=True)
 paths, tag = int(sys.argv[1]), sys.argv[2]
-for kv in sys.argv[3:]:
-    k, v = kv.split("=")
-    setattr(pp, k, type(getattr(pp, k))(float(v)))
-if os.environ.get("SOLVER"):
-    def add_both(sun_table, profile, medium, cutoff_deg, which=2):
-        probes, corr = pp.bent_beam_depth(sun_table, profile, medium, cutoff_deg, scaled_medium=2)
-        if np.any(corr):
-            sun_table.add_depth_columns(2, corr, linear_interp_matrix(probes, profile.wavelengths_nm))
-            wl_ms = mm.solver_wavelengths(profile.wavelengths_nm, QUALITIES["final"].settings.ms_wavelength_step_nm)
-            sun_table.add_depth_columns(1, corr, linear_interp_matrix(probes, wl_ms))
-    mm.add_peak_paths = add_both
+set_constants(sys.argv[3:])
+beam_in_solver_if_asked()
 a, e = os.environ.get("SCENE", "desert:-4").split(":")
 sc = bt.Scene(a, float(e), os.environ.get("TRUTH_CACHE", ".cache/truth"))
 V = os.environ.get("VIEWS", "0/0,30/0,60/0,75/0,60/90,30/180,70/45,85/90").split(",")
@@ -48,17 +37,7 @@ dirs, names = sc.dirs[keep], [bt.view_label(sc.views[i]) for i in keep]
 WL = float(os.environ.get("WL", 650))
 
 
-def peak_only(p):
-    f, _ = truncate_forward_peak(p.aerosol_phase_angles_deg, p.aerosol_phase, 12.0)
-    ph = p.aerosol_phase.copy()
-    ph[0] = peak_part(p.aerosol_phase_angles_deg, p.aerosol_phase, 12.0)[0] / f[0][None, :]
-    s = p.aerosol_scattering_by_regime.copy()
-    s[0] *= f[0][None, :]
-    s[1:] *= 1e-6
-    return p.with_(aerosol_phase=ph, aerosol_scattering_by_regime=s)
-
-
-pm = peak_only(sc.atm.optical_profile([WL]))
+pm = dust_peak_only(sc.atm.optical_profile([WL]))
 key = hashlib.sha1(",".join(names).encode()).hexdigest()[:6]
 mc_f = f"{OUT}/peakonly_{sc.name}_{WL:g}_{paths}_{key}.npz"
 if os.path.exists(mc_f):
@@ -73,8 +52,9 @@ else:
     print(f"MC {time.time() - t:.0f} s")
 e0 = float(np.asarray(pm.solar_irradiance)[0])
 mc, se = mc[:, 0] / e0, se[:, 0] / e0
-p = peak_only(sc.atm.optical_profile(list(bt.MARCH_WAVELENGTHS_NM)))
-m = mm.SkyMarcher(p, sc.elev, bt.SUN_AZIMUTH, 0.0, replace(QUALITIES["final"].settings, exact=True))
+p = dust_peak_only(sc.atm.optical_profile(list(bt.MARCH_WAVELENGTHS_NM)))
+s = replace(QUALITIES["final"].settings, exact=True, **bt._parse_variant(os.environ.get("VARIANT", "")))
+m = mm.SkyMarcher(p, sc.elev, bt.SUN_AZIMUTH, 0.0, s)
 sr = m.radiance(dirs)
 k = int(np.argmin(np.abs(np.asarray(p.wavelengths_nm) - WL)))
 r = sr.radiance[:, k] / p.solar_irradiance[k]

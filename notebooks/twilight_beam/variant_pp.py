@@ -17,25 +17,15 @@ import numpy as np
 sys.path[:0] = ["benchmarks"]
 import bench_truth as bt  # noqa: E402
 import skymodel.render.marcher as mm  # noqa: E402
-import skymodel.render.peak_paths as pp  # noqa: E402
-from skymodel.numerics import linear_interp_matrix  # noqa: E402
 from skymodel.render.quality import QUALITIES  # noqa: E402
 from skymodel.validation.truth import truth_statistics  # noqa: E402
+from _beam import beam_in_solver_if_asked, set_constants  # noqa: E402
 
 OUT = os.environ.get("TRUTH_MISSES_OUT", ".cache/truth_misses")
 os.makedirs(OUT, exist_ok=True)
 scenes, tag = sys.argv[1], sys.argv[2]
-for kv in sys.argv[3:]:
-    k, v = kv.split("=")
-    setattr(pp, k, type(getattr(pp, k))(float(v)))
-if os.environ.get("SOLVER"):
-    def add_both(sun_table, profile, medium, cutoff_deg, which=2):
-        probes, corr = pp.bent_beam_depth(sun_table, profile, medium, cutoff_deg, scaled_medium=2)
-        if np.any(corr):
-            sun_table.add_depth_columns(2, corr, linear_interp_matrix(probes, profile.wavelengths_nm))
-            wl_ms = mm.solver_wavelengths(profile.wavelengths_nm, QUALITIES["final"].settings.ms_wavelength_step_nm)
-            sun_table.add_depth_columns(1, corr, linear_interp_matrix(probes, wl_ms))
-    mm.add_peak_paths = add_both
+set_constants(sys.argv[3:])
+beam_in_solver_if_asked()
 
 
 def fmt(x, sign=True):
