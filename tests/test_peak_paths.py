@@ -174,11 +174,11 @@ def test_beam_in_dust_matches_brute_force(desert_with_paths, h0, e_sun):
 
 
 def test_offset_weights_integrate_the_kernel_and_reproduce_linear_lines():
-    """The hat weights sum to 1 and give a line integral linear in the offset exactly (the
-    kernel's mean offset, 0 for the symmetric peak); the offsets reach the cone, with 0 among
-    them and the first beside it 0.05 degrees out."""
+    """The hat weights sum to 1 and give a line integral linear in the offset exactly (its
+    value at the kernel's mean offset, here a lopsided kernel's); the offsets reach the cone,
+    with 0 among them and the first beside it 0.05 degrees out."""
     x = np.radians(np.linspace(-3.0, 3.0, 121))
-    k = np.exp(-(np.degrees(x) / 0.3) ** 2)[:, None] * np.array([1.0, 2.0])[None, :]
+    k = np.exp(-((np.degrees(x) - 0.2) / 0.3) ** 2)[:, None] * np.array([1.0, 2.0])[None, :]
     xs = pp.offset_nodes(12.0)
     assert -xs[0] == xs[-1] == pytest.approx(np.radians(12.0))
     assert np.count_nonzero(xs == 0.0) == 1
@@ -186,7 +186,9 @@ def test_offset_weights_integrate_the_kernel_and_reproduce_linear_lines():
     w = pp.hat_weights(xs, x, k)
     np.testing.assert_allclose(w.sum(axis=0), 1.0, rtol=1e-12)
     line = 3.0 + 2.0 * xs  # a line integral linear in x
-    np.testing.assert_allclose(line @ w, 3.0, rtol=1e-9)
+    mean_x = (k[:, 0] * x).sum() / k[:, 0].sum()
+    np.testing.assert_allclose(line @ w, 3.0 + 2.0 * mean_x, rtol=1e-12)
+    assert mean_x > np.radians(0.15)  # the check is not the symmetric case's 3.0
 
 
 def test_no_term_at_high_sun_or_without_a_peak(rural):
