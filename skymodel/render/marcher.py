@@ -104,6 +104,10 @@ class MarchSettings:
     ms_wavelength_step_nm: float = 20.0  # spacing of the wavelengths the solver uses
     table_altitudes: int = 24
     table_mu: int = 32
+    # of the table_mu / 2 zenith nodes of each hemisphere, this many within table_mu_horizon_deg of
+    # the horizon (a composite Gauss-Legendre rule, multiple_scattering.zenith_nodes); 0 = plain
+    table_mu_horizon_nodes: int = 0
+    table_mu_horizon_deg: float = 4.0
     table_phi: int = 12
     table_mus: int = 24
     table_steps: int = 48
@@ -140,6 +144,11 @@ class MarchSettings:
         # checked when the settings are made, before any table or solve
         if not 0.0 <= float(self.view_depth_share) <= 0.95:
             raise SkymodelInputError("view_depth_share", self.view_depth_share, "a number in [0, 0.95]")
+        if self.table_mu_horizon_nodes and not 0 < int(self.table_mu_horizon_nodes) < int(self.table_mu) // 2:
+            raise SkymodelInputError("table_mu_horizon_nodes", self.table_mu_horizon_nodes,
+                                     f"0 or an integer in [1, {int(self.table_mu) // 2 - 1}] (table_mu / 2 - 1)")
+        if self.table_mu_horizon_nodes and not 0.0 < float(self.table_mu_horizon_deg) < 90.0:
+            raise SkymodelInputError("table_mu_horizon_deg", self.table_mu_horizon_deg, "degrees in (0, 90)")
 
 
 @dataclass
@@ -262,7 +271,8 @@ def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> 
         n_phi=s.table_phi, n_mus=s.table_mus, n_steps=s.table_steps, orders=s.orders,
         max_orders=s.max_orders, tolerance=s.order_tolerance, spherical_orders=s.spherical_orders,
         spherical_tail=s.spherical_tail, spherical_probe_step_nm=s.spherical_probe_step_nm, peak_diffuse=s.peak_diffuse,
-        source_by_scattering=s.source_by_scattering, progress=progress)
+        source_by_scattering=s.source_by_scattering, mu_horizon_deg=s.table_mu_horizon_deg,
+        mu_horizon_nodes=s.table_mu_horizon_nodes, progress=progress)
     to_full = linear_interp_matrix(wl_ms, profile.wavelengths_nm)
     aureole = (peak_aureole_table(profile, medium, cone, top)
                if (s.peak_aureole and ms_field.orders > 1) else None)

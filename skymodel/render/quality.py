@@ -94,7 +94,13 @@ class Quality:
 #: spherical_tail (orders 4.. take order 3's correction for the sun angle along the solver's rays) and
 #: reference 2 -> 20 (every order): rural -4 degrees, the sunward horizon in the Earth's shadow,
 #: final median 0.82/0.62/0.46 -> 0.50/0.24/0.45 %, worst -2.8 -> -1.4 % against the truth, within
-#: 0.25 % of every order spherical for +1.5-2 s of solve (notebooks/spherical_tail).
+#: 0.25 % of every order spherical for +1.5-2 s of solve (notebooks/spherical_tail); final
+#: table_mu 32 -> 40 with 6 of each hemisphere's 20 zenith nodes within 4 degrees of the horizon
+#: (MarchSettings.table_mu_horizon_nodes: the glow toward a sun at or below the horizon; desert
+#: -4 degrees worst -8.2 -> -3.2 % at 88/0, rural 0 degrees -2.4 -> -2.0 %, the upper sky as before;
+#: against table_mu=96 the horizon views' error 3-6x smaller; notebooks/horizon_nodes); reference
+#: 8 of its 24 per hemisphere within 4 degrees (the same count: desert -4 worst -4.8 -> +2.7 %,
+#: rural 0 -1.1 -> +0.9 %).
 QUALITIES: dict[str, Quality] = {
     "preview": Quality(
         "preview",
@@ -108,7 +114,8 @@ QUALITIES: dict[str, Quality] = {
     "final": Quality(
         "final",
         MarchSettings(table_mus=32, table_altitudes=32, table_steps=96, ms_wavelength_step_nm=10.0,
-                      sun_exact_deg=12.0, peak_diffuse=True, spherical_orders=3, spherical_tail=True),
+                      sun_exact_deg=12.0, peak_diffuse=True, spherical_orders=3, spherical_tail=True,
+                      table_mu=40, table_mu_horizon_nodes=6),
         environment_width_px=1024, wavelength_step_nm=5.0,
         purpose="images to keep: under 0.1 % mean radiance error in tens of seconds at 512x256",
         target={"radiance_rel_mean": 0.005, "time_s": 60.0, "peak_memory_mb": 2048.0}),
@@ -117,7 +124,8 @@ QUALITIES: dict[str, Quality] = {
         MarchSettings(view_steps=128, order_tolerance=1e-4, ms_wavelength_step_nm=10.0, table_altitudes=32,
                       table_mu=48, table_phi=24, table_mus=32, table_steps=96, sun_table_altitudes=128,
                       sun_table_x=256, sun_table_steps=320, grid_zenith=192, grid_zenith_ground=48,
-                      grid_azimuth=121, sun_exact_deg=12.0, peak_diffuse=True, spherical_orders=20),
+                      grid_azimuth=121, sun_exact_deg=12.0, peak_diffuse=True, spherical_orders=20,
+                      table_mu_horizon_nodes=8),
         environment_width_px=2048, wavelength_step_nm=5.0,
         purpose="the accuracy benchmark's reference: tight tolerances, minutes per image"),
 }
