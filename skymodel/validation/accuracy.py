@@ -94,7 +94,9 @@ def _settings_from_dict(d):
 
 def scale_angular(settings, factor: float):
     """``settings`` with every angular resolution (direction grid and multiple-scattering
-    tables) scaled by ``factor`` (the azimuth grid keeps an odd node count)."""
+    tables) scaled by ``factor`` (the azimuth grid keeps an odd node count; the zenith nodes
+    crowded at the horizon, ``table_mu_horizon_nodes``, scale with their hemisphere's count and
+    stay fewer than it)."""
     f = float(factor)
     if not f > 0:
         raise SkymodelInputError("angular_grid", factor, "a positive scale factor")
@@ -102,9 +104,12 @@ def scale_angular(settings, factor: float):
     def n(v, lo):
         return max(lo, int(round(v * f)))
 
+    half = n(settings.table_mu / 2, 3)
+    # the zenith nodes within table_mu_horizon_deg of the horizon keep their share of each half
+    horizon = settings.table_mu_horizon_nodes and min(half - 1, n(settings.table_mu_horizon_nodes, 1))
     return replace(settings, grid_zenith=n(settings.grid_zenith, 8), grid_zenith_ground=n(settings.grid_zenith_ground, 4),
-                   grid_azimuth=2 * n((settings.grid_azimuth - 1) / 2, 3) + 1, table_mu=2 * n(settings.table_mu / 2, 3),
-                   table_phi=n(settings.table_phi, 3), table_mus=n(settings.table_mus, 6))
+                   grid_azimuth=2 * n((settings.grid_azimuth - 1) / 2, 3) + 1, table_mu=2 * half,
+                   table_mu_horizon_nodes=horizon, table_phi=n(settings.table_phi, 3), table_mus=n(settings.table_mus, 6))
 
 
 @dataclass(frozen=True)
