@@ -133,8 +133,9 @@ def hat_weights(offsets_rad, x, k) -> np.ndarray:
     piecewise-linear interpolation between the lines), normalised to sum 1. Exact for a line
     integral that is linear in x between neighbouring offsets, whatever the kernel's width."""
     xs = np.asarray(offsets_rad, float)
-    eye = np.eye(xs.size)
-    hats = np.stack([np.interp(x, xs, eye[j], left=0.0, right=0.0) for j in range(xs.size)])  # (n_off, n)
+    x = np.asarray(x, float)
+    # each line's hat function at x (n_off, n); zero beyond the outermost lines, not clamped
+    hats = linear_interp_matrix(xs, x) * ((x >= xs[0]) & (x <= xs[-1]))
     w = hats @ np.asarray(k, float)
     total = w.sum(axis=0)
     return w / np.where(total > 0, total, 1.0)
