@@ -39,10 +39,12 @@ the ground through the scaled extinction as well; the (non-negative) excess of t
 ``single`` and ``ground`` is counted in ``multiple``, together with J_ms, the solver's
 ground light and the peak aureole. The total does not depend on this split.
 
-Single scattering and the ground are evaluated for every direction at every wavelength;
-the multiple-scattering part is gathered on a grid of view directions (zenith angle x
-azimuth from the sun, split at the observer's horizon so the sky/ground edge stays sharp)
-and interpolated, since it varies slowly across the sky.
+With ``exact`` every component is evaluated for every direction at every wavelength.
+Otherwise the components are marched once on a grid of view directions (zenith angle x
+azimuth from the sun, split at the observer's horizon so the sky/ground edge stays sharp,
+crowded toward it) and interpolated bilinearly, except within ``sun_exact_deg`` of the sun
+(the aureole), where every direction is marched exactly; :mod:`skymodel.render.skyview`
+resamples the same grid to environment images.
 
 The observer stands on the z axis, so a view ray's samples, the medium along them and the
 transmittance back to the observer depend only on the ray's zenith angle: the direction

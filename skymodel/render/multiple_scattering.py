@@ -35,7 +35,8 @@ Each order is two matrix products per wavelength:
   that meet it (Lg: light leaving the Lambertian ground);
 * scatter: J_{n+1} = sum over species of sigma_s(h) P L_n, where P holds the phase
   function between every pair of grid directions times the quadrature weight of the
-  incoming direction (double Gauss-Legendre in mu, midpoint in phi), applied by azimuth
+  incoming direction (Gauss-Legendre in mu, per hemisphere or composite with nodes
+  crowded at the horizon: :func:`zenith_nodes`; midpoint in phi), applied by azimuth
   mode (P is a circulant in the azimuth: :func:`phase_modes`).
 
 Two safeguards keep thick media right: no grid ray gathers more than the physical
@@ -457,7 +458,8 @@ class TableGrid:
     """The solver's grid: altitude x view direction x sun angle, at the solver wavelengths.
 
     Directions are (mu, phi) pairs, direction index = i_mu * n_phi + i_phi: mu the cosine
-    of the view zenith angle (double or composite Gauss-Legendre, ascending: :func:`zenith_nodes`), phi the azimuth from the
+    of the view zenith angle (double or composite Gauss-Legendre, ascending:
+    :func:`zenith_nodes`), phi the azimuth from the
     sun's vertical plane in radians (midpoints of [0, pi]; the field is symmetric in phi,
     so the integral over [0, 2 pi) of g is the sum over [0, pi) of g(phi) + g(-phi)).
     """

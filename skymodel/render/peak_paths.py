@@ -284,7 +284,7 @@ def bent_beam_depth(sun_table, profile, medium, cutoff_deg: float, *, true_mediu
                                            true_medium=true_medium, scaled_medium=scaled_medium)
     rho = st.rho_nodes
     kc = np.clip(np.searchsorted(coarse, rows) - 1, 0, coarse.size - 2)
-    fc = ((rho[rows] - rho[coarse[kc]]) / (rho[coarse[kc + 1]] - rho[coarse[kc]]))[:, None, None]
+    fc = ((rho - rho[coarse[kc]]) / (rho[coarse[kc + 1]] - rho[coarse[kc]]))[:, None, None]
     d = d_coarse[kc] * (1.0 - fc) + d_coarse[kc + 1] * fc
     if not np.any(d):
         return probes, np.zeros((n_h, n_x, probes.size))
