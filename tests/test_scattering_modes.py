@@ -1,6 +1,7 @@
 """The solver's scattering step by azimuth mode equals the dense phase-matrix product."""
 
 import numpy as np
+import pytest
 
 from skymodel import Atmosphere
 from skymodel.render import multiple_scattering as ms
@@ -24,8 +25,10 @@ def test_phase_modes_rebuild_the_phase_matrix():
     np.testing.assert_allclose(rebuilt, pm, rtol=0, atol=2e-7 * np.abs(pm).max())
 
 
-def test_scattered_source_equals_the_dense_product():
-    prof, med, grid = _setup(6)
+@pytest.mark.parametrize("n_phi", [5, 6, 24])
+def test_scattered_source_equals_the_dense_product(n_phi):
+    """Odd and even azimuth counts, and one above OpenBLAS's threading size (the DCTs)."""
+    prof, med, grid = _setup(n_phi)
     species = ms.scattering_species(prof, med, grid)
     pair = ms.direction_pair_cosines(grid)
     dense = [ms.phase_matrix(prof.rayleigh_phase, grid, pair)] + [
