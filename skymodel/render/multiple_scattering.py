@@ -60,7 +60,6 @@ import threading
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.fft import dct
 
 from skymodel.geometry import altitude_grid
 from skymodel.numerics import linear_interp_matrix
@@ -813,32 +812,35 @@ def scattered_source(radiance: np.ndarray, species, grid: TableGrid) -> np.ndarr
     :func:`combined_phase_modes`. By azimuth mode (:func:`phase_modes`): L_n's cosine
     coefficients, each mode at each altitude scattered by Q = sum_s sigma_s(h) P_m (one
     32 x 32 matrix product per wavelength, mode and altitude at ``final``), then back to
-    the azimuth nodes (measured, CPU time of one step at ``final``, load 7: dense P
-    0.6-1.2 s, by mode and species 0.26-0.35 s, with Q 0.08-0.15 s; J within 2.2e-6 of the
-    dense product).
+    the azimuth nodes; every step a matrix product on the dir layout's own memory (no
+    transposed copies; measured, CPU time of one step at ``final``, load 7: dense P 0.6-1.2 s,
+    by mode and species 0.26-0.35 s, with Q 0.08-0.15 s; J within 2.2e-6 of the dense
+    product).
 
-    The azimuth nodes are the midpoints of [0, pi], so the coefficients are a DCT-II along
-    the azimuth axis and the way back a DCT-III (:func:`scipy.fft.dct`, O(n_phi log n_phi)
-    per line, on the layout's own strides). Not a batched matrix product with
-    :func:`azimuth_modes`: numpy's OpenBLAS threads those small products above some size
-    (between 16 and 20 azimuths at ``final``), and with the other core busy the 920 of them
-    took 1.2-2.8 s per order at 20-24 azimuths where the DCTs take 0.05-0.1 s
-    (notebooks/azimuth_count)."""
+    The azimuth transforms are n_phi x n_phi by n_phi x n_mus products, one per wavelength,
+    zenith node and altitude, on strided views: small enough that numpy's OpenBLAS keeps
+    them on one thread. One n_phi x (n_h n_mus) product per wavelength and zenith node, as
+    before, was threaded here from between 16 and 20 azimuths on, and those threads stalled
+    whenever the other core was busy: 0.11-0.13 s per transform at 24 azimuths idle or beside
+    a busy loop, 1.2-2.8 s under load ~4, against 0.03 s now (notebooks/azimuth_count)."""
     n_wl, n_mu, n_phi, n_h, n_mus = grid.n_wl, grid.n_mu, grid.n_phi, grid.n_h, grid.n_mus
     assert radiance.shape == (n_wl, grid.n_dir, n_h, n_mus), radiance.shape
     q = species if isinstance(species, np.ndarray) else combined_phase_modes(species, grid)
-    # DCT-II: 2 sum_j f_j cos(m phi_j); the coefficients are that times 1/(2 n_phi) (m = 0) or
-    # 1/n_phi, and the DCT-III back gives 2 sum_m c_m cos(m phi_j) - c_0 from c_m halved for m > 0:
-    # together one factor 1/(2 n_phi) per mode, applied once at the end (Q is linear per mode)
-    l_m = dct(radiance.reshape(n_wl, n_mu, n_phi, n_h * n_mus), type=2, axis=2)
-    j_m = np.empty(l_m.shape, dtype=np.result_type(l_m, q))
+    forward = np.ascontiguousarray(_mode_projection(grid).T, dtype=np.float32)  # (m, phi)
+
+    def by_altitude(a):  # (n_wl, n_mu, phi or m, n_h, n_mus) viewed as (n_wl, n_mu, n_h, phi or m, n_mus)
+        return a.reshape(n_wl, n_mu, n_phi, n_h, n_mus).transpose(0, 1, 3, 2, 4)
+
+    # coefficients, laid out (n_wl, n_mu, m, n_h, n_mus) as the field's (n_wl, n_mu, phi, ...)
+    l_m = np.empty(radiance.shape, dtype=np.result_type(forward, radiance))
+    np.matmul(forward, by_altitude(radiance), out=by_altitude(l_m))
+    j_m = np.empty_like(l_m)
     # per (wavelength, mode, altitude): Q (mu, mu') @ L_m (mu', mu_s), on strided views
     np.matmul(q, l_m.reshape(n_wl, n_mu, n_phi, n_h, n_mus).transpose(0, 2, 3, 1, 4),
               out=j_m.reshape(n_wl, n_mu, n_phi, n_h, n_mus).transpose(0, 2, 3, 1, 4))
-    del l_m
-    out = dct(j_m, type=3, axis=2, overwrite_x=True)
-    out *= out.dtype.type(1.0 / (2 * n_phi))
-    return out.astype(np.float32, copy=False).reshape(n_wl, grid.n_dir, n_h, n_mus)
+    # back to the azimuth nodes, into l_m's memory: (n_wl, n_mu, phi, n_h, n_mus), the dir layout
+    np.matmul(azimuth_modes(grid).astype(np.float32), by_altitude(j_m), out=by_altitude(l_m))
+    return l_m.reshape(n_wl, grid.n_dir, n_h, n_mus)
 
 
 def gathered_radiance(source: np.ndarray, ground_radiance: np.ndarray, M: np.ndarray, G: np.ndarray,
