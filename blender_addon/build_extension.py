@@ -44,6 +44,8 @@ ROOT = Path(__file__).resolve().parents[1]
 WHEELS = {
     "colour-science==0.4.6": {"any": ("manylinux_2_28_x86_64", "colour_science-0.4.6-py3-none-any.whl")},
     "typing_extensions==4.16.0": {"any": ("manylinux_2_28_x86_64", "typing_extensions-4.16.0-py3-none-any.whl")},
+    # the IANA zones for a named --timezone / the panel's Time Zone where the system has none (Windows)
+    "tzdata==2026.6": {"any": ("manylinux_2_28_x86_64", "tzdata-2026.6-py2.py3-none-any.whl")},
     "scipy==1.17.1": {
         "linux-x64": ("manylinux_2_28_x86_64",
                       "scipy-1.17.1-cp311-cp311-manylinux_2_27_x86_64.manylinux_2_28_x86_64.whl"),
