@@ -27,7 +27,7 @@ def test_phase_modes_rebuild_the_phase_matrix():
 
 @pytest.mark.parametrize("n_phi", [5, 6, 24])
 def test_scattered_source_equals_the_dense_product(n_phi):
-    """Odd and even azimuth counts, and one above OpenBLAS's threading size (the DCTs)."""
+    """Odd and even azimuth counts, and `reference`'s 24."""
     prof, med, grid = _setup(n_phi)
     species = ms.scattering_species(prof, med, grid)
     pair = ms.direction_pair_cosines(grid)
