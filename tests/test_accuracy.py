@@ -192,7 +192,6 @@ def test_scale_angular_keeps_the_parity_the_solver_needs():
         accuracy.scale_angular(MarchSettings(), 0.0)
 
 
-
 @pytest.mark.parametrize("quality", ["final", "reference"])
 def test_scale_angular_keeps_the_horizon_nodes_valid(quality):
     """The presets crowd some zenith nodes at the horizon; every angular_grid factor of the
@@ -205,6 +204,7 @@ def test_scale_angular_keeps_the_horizon_nodes_valid(quality):
         s = accuracy.scale_angular(base, f)
         assert 1 <= s.table_mu_horizon_nodes < s.table_mu // 2
     assert accuracy.scale_angular(base, 1.0) == base
+
 
 def test_unknown_knob_or_scene_is_refused():
     cfg = accuracy.quick_config()
