@@ -26,6 +26,18 @@ def test_phase_modes_rebuild_the_phase_matrix():
 
 
 @pytest.mark.parametrize("n_phi", [5, 6, 24])
+def test_phase_modes_from_one_column_equal_the_dense_route(n_phi):
+    """The solver's phase modes from one column of each circulant (phase_modes_of) against the
+    modes projected from the dense matrix, for the air and a desert aerosol."""
+    prof, med, grid = _setup(n_phi)
+    for phase in (prof.rayleigh_phase, ms.aerosol_phase_function(prof, med, 0)):
+        dense = ms.phase_modes(ms.phase_matrix(phase, grid, ms.direction_pair_cosines(grid)), grid)
+        got = ms.phase_modes_of(phase, grid)
+        assert got.dtype == np.float32 and got.shape == dense.shape == (n_phi, grid.n_wl, grid.n_mu, grid.n_mu)
+        np.testing.assert_allclose(got, dense, rtol=0, atol=1e-6 * np.abs(dense).max())
+
+
+@pytest.mark.parametrize("n_phi", [5, 6, 24])
 def test_scattered_source_equals_the_dense_product(n_phi):
     """Odd and even azimuth counts, and `reference`'s 24."""
     prof, med, grid = _setup(n_phi)
