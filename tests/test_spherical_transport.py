@@ -174,25 +174,29 @@ def test_correction_on_every_other_azimuth_follows_the_full_one():
         np.testing.assert_allclose(coarse, full, rtol=0.002)
 
 
-def test_coarse_correction_reads_back_linearly():
-    """The fine nodes lie a quarter of a coarse cell from their coarse node: a ratio linear in
-    the azimuth at the coarse nodes comes back exact at the fine ones inside, and the two end
-    nodes take their coarse node's value (the mirror about 0 and pi). The pair mean of a field is
-    the mean of nodes 2k and 2k + 1."""
+def test_coarse_azimuths_read_back_linearly():
+    """The coarse azimuths are the midpoints of half as many cells; the fine nodes lie a quarter
+    of a coarse cell from their coarse node: a field linear in the azimuth at the coarse nodes
+    comes back exact at the fine ones inside, and the two end nodes take their coarse node's
+    value (the mirror about 0 and pi). The pair mean of a field is the mean of nodes 2k and
+    2k + 1."""
     import skymodel.render.multiple_scattering as ms
 
-    sph = ms._SphericalTransport.__new__(ms._SphericalTransport)
-    sph.n_mu, sph.n_h, sph.n_mus, sph.fine_n_phi, sph.n_phi = 2, 3, 4, 8, 4
-    fine_phi = (np.arange(8) + 0.5) * np.pi / 8
-    coarse_phi = 0.5 * (fine_phi[0::2] + fine_phi[1::2])
-    np.testing.assert_allclose(coarse_phi, (np.arange(4) + 0.5) * np.pi / 4)
-    ratio = np.broadcast_to((1.0 + 0.3 * coarse_phi)[None, None, :, None, None], (1, 2, 4, 3, 4)).reshape(1, 8, 3, 4)
-    fine = sph._to_fine(ratio).reshape(1, 2, 8, 3, 4)[0, 0, :, 0, 0]
-    np.testing.assert_allclose(fine[1:-1], 1.0 + 0.3 * fine_phi[1:-1], rtol=1e-12)
-    np.testing.assert_allclose(fine[[0, -1]], 1.0 + 0.3 * coarse_phi[[0, -1]], rtol=1e-12)
+    grid = ms.TableGrid(np.array([500.0]), np.array([0.0, 1e3]), np.array([-0.5, 0.5]), np.array([1.0, 1.0]),
+                        (np.arange(8) + 0.5) * np.pi / 8, np.pi / 8, np.array([0.0, 0.5, 1.0]))
+    coarse = ms.coarse_azimuth_grid(grid)
+    np.testing.assert_allclose(coarse.phi_nodes, (np.arange(4) + 0.5) * np.pi / 4)
+    assert coarse.phi_weight == np.pi / 4 and coarse.n_dir == grid.n_dir // 2
+    ratio = np.broadcast_to((1.0 + 0.3 * coarse.phi_nodes)[None, None, :, None], (2, 3, 4, 5))
+    fine = ms.azimuths_to_fine(ratio, axis=2)
+    assert fine.shape == (2, 3, 8, 5)
+    fine = fine[1, 2, :, 3]
+    np.testing.assert_allclose(fine[1:-1], 1.0 + 0.3 * grid.phi_nodes[1:-1], rtol=1e-12)
+    np.testing.assert_allclose(fine[[0, -1]], 1.0 + 0.3 * coarse.phi_nodes[[0, -1]], rtol=1e-12)
     field = np.random.default_rng(1).random((2, 2 * 8, 3, 4))
-    pairs = sph._pair_mean(field).reshape(2, 2, 4, 3, 4)
-    np.testing.assert_allclose(pairs, 0.5 * (field.reshape(2, 2, 8, 3, 4)[:, :, 0::2] + field.reshape(2, 2, 8, 3, 4)[:, :, 1::2]))
+    pairs = ms.azimuth_pair_mean(field, 2, 8).reshape(2, 2, 4, 3, 4)
+    f5 = field.reshape(2, 2, 8, 3, 4)
+    np.testing.assert_allclose(pairs, 0.5 * (f5[:, :, 0::2] + f5[:, :, 1::2]))
 
 
 def test_coarse_correction_needs_an_even_azimuth_count():

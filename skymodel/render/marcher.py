@@ -138,6 +138,10 @@ class MarchSettings:
     # the spherical correction (orders >= 2) formed on every other azimuth node and read back
     # linearly (an even table_phi; multiple_scattering._SphericalTransport)
     spherical_coarse_phi: bool = False
+    # the scattering orders from this one on (after the spherically corrected ones) solved on
+    # every other azimuth node, their sum read back linearly (an even table_phi; 0 = none;
+    # multiple_scattering.CoarseOrders)
+    coarse_phi_from_order: int = 0
     peak_aureole: bool = True  # add the light scattered 2+ times in the cut forward peaks (skymodel.render.aureole)
     peak_diffuse: bool = False  # scatter the diffuse light near the horizon in the cut peaks (skymodel.render.peak_diffuse)
     peak_paths: bool = True  # delta-M's sun beam near a low sun with the cut peak's light on bent paths (skymodel.render.peak_paths)
@@ -152,6 +156,13 @@ class MarchSettings:
         if self.table_mu_horizon_nodes and not 0 < int(self.table_mu_horizon_nodes) < int(self.table_mu) // 2:
             raise SkymodelInputError("table_mu_horizon_nodes", self.table_mu_horizon_nodes,
                                      f"0 or an integer in [1, {int(self.table_mu) // 2 - 1}] (table_mu / 2 - 1)")
+        if self.coarse_phi_from_order and not int(self.coarse_phi_from_order) > max(2, int(self.spherical_orders)):
+            raise SkymodelInputError("coarse_phi_from_order", self.coarse_phi_from_order,
+                                     f"0 or an order above {max(2, int(self.spherical_orders))} "
+                                     "(after the spherically corrected ones)")
+        if self.coarse_phi_from_order and int(self.table_phi) % 2:
+            raise SkymodelInputError("table_phi", self.table_phi,
+                                     "an even count with coarse_phi_from_order (orders on every other azimuth)")
         if self.spherical_coarse_phi and int(self.table_phi) % 2:
             raise SkymodelInputError("table_phi", self.table_phi,
                                      "an even count with spherical_coarse_phi (the correction on every other azimuth)")
@@ -280,7 +291,8 @@ def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> 
         max_orders=s.max_orders, tolerance=s.order_tolerance, spherical_orders=s.spherical_orders,
         spherical_tail=s.spherical_tail, spherical_probe_step_nm=s.spherical_probe_step_nm, peak_diffuse=s.peak_diffuse,
         source_by_scattering=s.source_by_scattering, mu_horizon_deg=s.table_mu_horizon_deg,
-        mu_horizon_nodes=s.table_mu_horizon_nodes, spherical_coarse_phi=s.spherical_coarse_phi, progress=progress)
+        mu_horizon_nodes=s.table_mu_horizon_nodes, spherical_coarse_phi=s.spherical_coarse_phi,
+        coarse_phi_from_order=s.coarse_phi_from_order, progress=progress)
     to_full = linear_interp_matrix(wl_ms, profile.wavelengths_nm)
     aureole = (peak_aureole_table(profile, medium, cone, top)
                if (s.peak_aureole and ms_field.orders > 1) else None)

@@ -57,7 +57,8 @@ the marcher in the small-angle approximation (:mod:`skymodel.render.aureole`).
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -702,6 +703,36 @@ def to_dir_layout(a: np.ndarray, grid: TableGrid) -> np.ndarray:
     return a.reshape(grid.n_wl, grid.n_dir, grid.n_h, grid.n_mus)
 
 
+def coarse_azimuth_grid(grid: TableGrid) -> TableGrid:
+    """The same grid with half the azimuth nodes (an even n_phi): the midpoints of n_phi / 2
+    cells on [0, pi], each the mean of two neighbouring nodes of ``grid``."""
+    if grid.n_phi % 2:
+        raise ValueError(f"half the azimuth nodes needs an even count, not {grid.n_phi}")
+    return replace(grid, phi_nodes=0.5 * (grid.phi_nodes[0::2] + grid.phi_nodes[1::2]), phi_weight=2.0 * grid.phi_weight)
+
+
+def azimuth_pair_mean(a: np.ndarray, n_mu: int, n_phi: int) -> np.ndarray:
+    """(P, n_mu * n_phi, ...) -> (P, n_mu * n_phi / 2, ...): the mean of azimuth nodes 2k and
+    2k + 1, the value at the coarse node k (:func:`coarse_azimuth_grid`) of a field linear
+    between them."""
+    a5 = a.reshape(a.shape[0], n_mu, n_phi, *a.shape[2:])
+    return (0.5 * (a5[:, :, 0::2] + a5[:, :, 1::2])).reshape(a.shape[0], n_mu * (n_phi // 2), *a.shape[2:])
+
+
+def azimuths_to_fine(a: np.ndarray, axis: int) -> np.ndarray:
+    """A field on the coarse azimuths (:func:`coarse_azimuth_grid`) read linearly at twice as
+    many along ``axis``: each fine node lies a quarter of a coarse cell from its coarse node
+    (the field is even about 0 and pi: beyond the ends, the end node's mirror is itself)."""
+    r = np.moveaxis(a, axis, 0)
+    fine = np.empty((2 * r.shape[0],) + r.shape[1:], dtype=r.dtype)
+    fine[0::2] = fine[1::2] = 0.75 * r
+    fine[2::2] += 0.25 * r[:-1]  # fine 2k: toward coarse k - 1
+    fine[0] += 0.25 * r[0]
+    fine[1:-2:2] += 0.25 * r[1:]  # fine 2k + 1: toward coarse k + 1
+    fine[-1] += 0.25 * r[-1]
+    return np.moveaxis(fine, 0, axis)
+
+
 # ------------------------------------------------------------------ scattering
 
 
@@ -823,11 +854,15 @@ def combined_phase_modes(species: list, grid: TableGrid) -> np.ndarray:
     """Q, (n_wl, n_phi modes, n_h, n_mu out, n_mu in) float32: sum over the species of
     sigma_s(h) P_m (:func:`scattering_species`), what one order's scattering applies to
     each mode at each altitude (computed once per solve; 64 MB at ``final``)."""
-    q = None
-    for modes, sig in species:  # modes (m, w, mu, mu'), sig (h, w)
-        term = sig.T[:, None, :, None, None] * modes.transpose(1, 0, 2, 3)[:, :, None]
-        q = term if q is None else q + term
-    return np.ascontiguousarray(q, dtype=np.float32)
+    sig = np.stack([s for _, s in species]).astype(np.float32).transpose(2, 1, 0)  # (w, h, species)
+    modes = np.stack([p for p, _ in species]).astype(np.float32)  # (species, m, w, mu, mu')
+    n_s, n_m, n_wl, n_a, n_b = modes.shape
+    q = np.empty((n_wl, n_m, sig.shape[1], n_a, n_b), dtype=np.float32)
+    for w in range(n_wl):  # one (h, species) @ (species, m mu mu') product per wavelength
+        # (one broadcast product per species over the whole array was 0.6 s at 24 azimuths, 41 wavelengths)
+        prod = sig[w] @ np.ascontiguousarray(modes[:, :, w]).reshape(n_s, -1)
+        q[w] = prod.reshape(-1, n_m, n_a, n_b).transpose(1, 0, 2, 3)
+    return q
 
 
 def scattered_source(radiance: np.ndarray, species, grid: TableGrid) -> np.ndarray:
@@ -960,10 +995,25 @@ class OrderSeries:
 SPHERICAL_TAIL_RATIO_MAX = 10.0
 
 
+@dataclass
+class CoarseOrders:
+    """The orders from ``from_order`` on, solved on half the azimuth nodes: the coarse
+    grid (:func:`coarse_azimuth_grid`); ``operators()`` makes its phase modes
+    (:func:`combined_phase_modes`) and peak term (a
+    :class:`~skymodel.render.peak_diffuse.PeakDiffuse` on it, or None) when the series
+    reaches ``from_order`` (made earlier, they would be held beside the fine grid's through
+    the fine orders, at the solve's peak of memory)."""
+
+    from_order: int
+    grid: TableGrid
+    operators: Callable[[], tuple[np.ndarray, PeakDiffuse | None]]
+
+
 def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G: np.ndarray, grid: TableGrid,
                           ground_albedo: np.ndarray, *, orders: int | None, max_orders: int, tolerance: float,
                           spherical: _SphericalTransport | None = None, spherical_orders: int = 0,
-                          spherical_tail: bool = False, progress=None, peak=None) -> OrderSeries:
+                          spherical_tail: bool = False, progress=None, peak=None,
+                          coarse: CoarseOrders | None = None) -> OrderSeries:
     """Orders 2, 3, ... from the first-order ``radiance`` (dir layout): each order
     scatters the last order's radiance into a source (:func:`scattered_source`), then
     transports it with the ground's reflection (:func:`gathered_radiance`; through
@@ -974,22 +1024,38 @@ def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G:
     (relative, summed over the grid and the wavelengths) or ``max_orders`` is reached.
     ``ground_albedo`` (n_wl,) float32; ``progress(n, size)`` after each order; ``peak`` (a
     :class:`~skymodel.render.peak_diffuse.PeakDiffuse` or None) adds the cut forward peaks'
-    scattering of each order's radiance near the horizon."""
+    scattering of each order's radiance near the horizon. ``coarse``: the orders from
+    ``coarse.from_order`` on (after ``spherical_orders``) on half the azimuths, from the pair
+    means of the last fine order's radiance, their sum read back linearly on ``grid``
+    (:func:`azimuths_to_fine`; the diffuse orders are smooth in the azimuth). The sizes of the
+    coarse orders are scaled by the ratio of the node counts, as if summed on ``grid``."""
     assert tolerance >= 0.0 and max_orders >= 1, (tolerance, max_orders)
+    assert coarse is None or coarse.from_order > max(2, spherical_orders), "coarse orders come after the corrected ones"
     albedo = ground_albedo
+    fine_grid = grid
     species = combined_phase_modes(species, grid) if not isinstance(species, np.ndarray) else species
     series = OrderSeries(np.zeros((grid.n_wl, grid.n_dir, grid.n_h, grid.n_mus), dtype=np.float32),
                          ground_diffuse_irradiance(radiance, grid), 1, [], [])
     j_ms, e_diffuse = series.source, series.ground_irradiance
     limit = max_orders if orders is None else orders
     j_n = e_n = last_ratio = None
+    scale, fine_abs = 1.0, 0.0  # the coarse sums' weight, the fine orders' share of sum |J|
+    n_sub = 0 if spherical is None else spherical.n_sub
     for n in range(2, limit + 1):
+        if coarse is not None and n == coarse.from_order:  # on to half the azimuths
+            species = peak = None  # the fine grid's, freed before the coarse ones are made
+            grid, (species, peak) = coarse.grid, coarse.operators()
+            radiance = azimuth_pair_mean(radiance, grid.n_mu, fine_grid.n_phi)
+            if last_ratio is not None:
+                last_ratio = azimuth_pair_mean(last_ratio, grid.n_mu, fine_grid.n_phi)
+            scale, fine_abs = fine_grid.n_phi / grid.n_phi, float(np.abs(j_ms).sum())
+            j_ms = np.zeros((grid.n_wl, grid.n_dir, grid.n_h, grid.n_mus), dtype=np.float32)
         j_n = scattered_source(radiance, species, grid)
         if peak:
             peak.add_source(radiance, j_n)
         j_ms += j_n
         series.orders = n
-        size = float(np.abs(j_n).sum()) / max(float(np.abs(j_ms).sum()), 1e-300)
+        size = scale * float(np.abs(j_n).sum()) / max(fine_abs + scale * float(np.abs(j_ms).sum()), 1e-300)
         series.contributions.append(size)
         if progress is not None:
             progress(n, size)
@@ -997,15 +1063,21 @@ def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G:
         radiance = gathered_radiance(j_n, lg, M, G, grid)
         if spherical is not None and n <= spherical_orders:
             ratio = spherical.correction(j_n, lg, radiance)  # at the first n_sub sun nodes
-            radiance[..., :spherical.n_sub] *= ratio
+            radiance[..., :n_sub] *= ratio
             last_ratio = np.minimum(ratio, SPHERICAL_TAIL_RATIO_MAX) if (spherical_tail and n >= 3) else None
         elif last_ratio is not None:
-            radiance[..., :spherical.n_sub] *= last_ratio
+            radiance[..., :n_sub] *= last_ratio
         e_n = ground_diffuse_irradiance(radiance, grid)
         e_diffuse = e_diffuse + e_n
-        series.sizes.append(np.abs(j_n).sum(axis=(1, 2, 3), dtype=np.float64))  # per wavelength
+        series.sizes.append(scale * np.abs(j_n).sum(axis=(1, 2, 3), dtype=np.float64))  # per wavelength
         if orders is None and size < tolerance:
             break
+    if grid is not fine_grid:  # the coarse orders' sum and the last order back on the solver's azimuths
+        def to_fine(a):
+            a = a.reshape(grid.n_wl, grid.n_mu, grid.n_phi, grid.n_h, grid.n_mus)
+            return azimuths_to_fine(a, axis=2).reshape(grid.n_wl, fine_grid.n_dir, grid.n_h, grid.n_mus)
+        j_ms = series.source + to_fine(j_ms)
+        j_n = to_fine(j_n)
     series.source, series.ground_irradiance = j_ms, e_diffuse
     series.last_source, series.last_ground_irradiance = j_n, e_n
     return series
@@ -1040,7 +1112,7 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
                               spherical_probe_step_nm: float = 100.0, peak_diffuse: bool = False,
                               source_by_scattering: bool = False, mu_horizon_deg: float = 0.0,
                               mu_horizon_nodes: int = 0, spherical_coarse_phi: bool = False,
-                              progress=None) -> MultipleScatteringField:
+                              coarse_phi_from_order: int = 0, progress=None) -> MultipleScatteringField:
     """Solve orders 2..N of scattering for ``profile`` (already at the solver's
     wavelengths). ``sun_table`` must hold the delta-M scaled extinction as medium 1.
     ``orders`` fixes the highest order (1 = single scattering only, no field); otherwise
@@ -1059,7 +1131,9 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
     column of sigma_s +0.6 %). ``mu_horizon_deg``, ``mu_horizon_nodes``: the zenith nodes'
     composite rule (:func:`zenith_nodes`; 0 nodes = double Gauss-Legendre).
     ``spherical_coarse_phi``: the spherical correction of orders 2.. on every other azimuth
-    (:class:`_SphericalTransport`'s ``coarse_phi``; an even ``n_phi``).
+    (:class:`_SphericalTransport`'s ``coarse_phi``; an even ``n_phi``). ``coarse_phi_from_order``
+    (0: none): the orders from this one on, after the spherically corrected ones, on half
+    the azimuths (:class:`CoarseOrders`; an even ``n_phi``).
 
     The steps: :func:`build_table_grid`, :func:`trace_grid_rays`, the column transport
     (:func:`transport_row_scale`, :func:`column_transport_matrix`), the phase matrices
@@ -1085,6 +1159,12 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
             ground_t=rays.ground_t, h_nodes=grid.h_nodes, mu_nodes=grid.mu_nodes, phi_nodes=grid.phi_nodes,
             mus_nodes=grid.mus_nodes, wavelengths_nm=grid.wavelengths_nm, probe_step_nm=spherical_probe_step_nm,
             coarse_phi=spherical_coarse_phi, **sigma)
+    coarse = None
+    if coarse_phi_from_order:
+        coarse_grid = coarse_azimuth_grid(grid)
+        coarse = CoarseOrders(coarse_phi_from_order, coarse_grid, lambda: (
+            combined_phase_modes(scattering_species(profile, medium, coarse_grid), coarse_grid),
+            PeakDiffuse(profile, medium, coarse_grid) if peak_diffuse else None))
     # the first order's radiance goes straight into the series, which lets it go after order 2
     # (held here, it would keep one more field-sized array alive through every order)
     series = sum_scattering_orders(first_order_radiance(profile, medium, sun_table, grid, rays, M, G,
@@ -1093,7 +1173,7 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
                                    orders=orders, max_orders=max_orders, tolerance=tolerance, spherical=spherical,
                                    spherical_orders=spherical_orders, spherical_tail=spherical_tail,
                                    progress=progress,
-                                   peak=PeakDiffuse(profile, medium, grid) if peak_diffuse else None)
+                                   peak=PeakDiffuse(profile, medium, grid) if peak_diffuse else None, coarse=coarse)
     if orders is None:
         add_geometric_tail(series)
     # float32, as solved (the interpolation table is float32 too; a float64 copy was 0.13 GB at final)
@@ -1371,24 +1451,6 @@ class _SphericalTransport:
             out[self.hits] += g * self.ground_t[:, None, :]
         return np.moveaxis(out, -1, 0).reshape(n_pr, self.n_rays, self.n_phi, n_sub)
 
-    def _pair_mean(self, a):
-        """(P, n_mu * fine n_phi, ...) -> (P, n_mu * n_phi, ...): the mean of the azimuth nodes
-        2k and 2k + 1 (the coarse node k)."""
-        a5 = a.reshape(a.shape[0], self.n_mu, self.fine_n_phi, *a.shape[2:])
-        return (0.5 * (a5[:, :, 0::2] + a5[:, :, 1::2])).reshape(a.shape[0], self.n_mu * self.n_phi, *a.shape[2:])
-
-    def _to_fine(self, ratio):
-        """The coarse ratio (n_wl, n_mu * n_phi, n_h, k) read linearly at the fine nodes,
-        each a quarter of a coarse cell from its coarse node (the ratio is even about 0 and pi:
-        beyond the ends, the end node's mirror is itself)."""
-        r5 = ratio.reshape(ratio.shape[0], self.n_mu, self.n_phi, *ratio.shape[2:])
-        below = np.concatenate([r5[:, :, :1], r5[:, :, :-1]], axis=2)
-        above = np.concatenate([r5[:, :, 1:], r5[:, :, -1:]], axis=2)
-        fine = np.empty((ratio.shape[0], self.n_mu, self.fine_n_phi, *ratio.shape[2:]), dtype=ratio.dtype)
-        fine[:, :, 0::2] = 0.75 * r5 + 0.25 * below
-        fine[:, :, 1::2] = 0.75 * r5 + 0.25 * above
-        return fine.reshape(ratio.shape[0], self.n_mu * self.fine_n_phi, *ratio.shape[2:])
-
     def correction(self, j_dir, lg, column_dir):
         """Factor (n_wl, n_dir, n_h, n_sub) float32 turning the column transport ``column_dir``
         (the dir layout of M J + G L_g) into the spherical one at the corrected sun nodes, the
@@ -1398,13 +1460,14 @@ class _SphericalTransport:
             return np.ones((n_wl, column_dir.shape[1], self.n_h, 0), dtype=np.float32)
         j_probe, col = j_dir[self.probe], column_dir[self.probe, ..., :self.n_sub]
         if self.coarse:
-            j_probe, col = self._pair_mean(j_probe), self._pair_mean(col)
+            j_probe, col = (azimuth_pair_mean(x, self.n_mu, self.fine_n_phi) for x in (j_probe, col))
         sph = self.transport(j_probe, lg)  # (P, rays, n_phi, n_sub)
         col = col.reshape(self.probe.size, self.n_mu, self.n_phi, self.n_h, self.n_sub)
         col = col.transpose(0, 3, 1, 2, 4).reshape(sph.shape)
         r = np.where(col > 0.0, sph / np.where(col > 0.0, col, 1.0), 1.0)  # (P, rays, n_phi, n_sub)
-        if self.to_all is not None:
-            r = np.einsum("p...,pw->w...", r, self.to_all)
-        r = r.reshape(n_wl, self.n_h, self.n_mu, self.n_phi, self.n_sub).transpose(0, 2, 3, 1, 4)
-        r = np.ascontiguousarray(r, dtype=np.float32).reshape(n_wl, self.n_mu * self.n_phi, self.n_h, self.n_sub)
-        return self._to_fine(r) if self.coarse else r
+        if self.coarse:  # back on the solver's azimuths (at the probe wavelengths: n_wl / P times less work)
+            r = azimuths_to_fine(r, axis=2)
+        if self.to_all is not None:  # in float32 (in float64 it was the solve's largest transient array)
+            r = np.einsum("p...,pw->w...", r.astype(np.float32), self.to_all.astype(np.float32))
+        r = r.reshape(n_wl, self.n_h, self.n_mu, self.fine_n_phi, self.n_sub).transpose(0, 2, 3, 1, 4)
+        return np.ascontiguousarray(r, dtype=np.float32).reshape(n_wl, self.n_mu * self.fine_n_phi, self.n_h, self.n_sub)
