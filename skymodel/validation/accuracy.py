@@ -96,7 +96,8 @@ def scale_angular(settings, factor: float):
     """``settings`` with every angular resolution (direction grid and multiple-scattering
     tables) scaled by ``factor`` (the azimuth grid keeps an odd node count; the zenith nodes
     crowded at the horizon, ``table_mu_horizon_nodes``, scale with their hemisphere's count and
-    stay fewer than it)."""
+    stay fewer than it; the solver's azimuths stay even where some orders run on every other
+    one)."""
     f = float(factor)
     if not f > 0:
         raise SkymodelInputError("angular_grid", factor, "a positive scale factor")
@@ -107,9 +108,12 @@ def scale_angular(settings, factor: float):
     half = n(settings.table_mu / 2, 3)
     # the zenith nodes within table_mu_horizon_deg of the horizon keep their share of each half
     horizon = settings.table_mu_horizon_nodes and min(half - 1, n(settings.table_mu_horizon_nodes, 1))
+    phi = n(settings.table_phi, 3)
+    if (settings.spherical_coarse_phi or settings.coarse_phi_from_order) and phi % 2:
+        phi += 1
     return replace(settings, grid_zenith=n(settings.grid_zenith, 8), grid_zenith_ground=n(settings.grid_zenith_ground, 4),
                    grid_azimuth=2 * n((settings.grid_azimuth - 1) / 2, 3) + 1, table_mu=2 * half,
-                   table_mu_horizon_nodes=horizon, table_phi=n(settings.table_phi, 3), table_mus=n(settings.table_mus, 6))
+                   table_mu_horizon_nodes=horizon, table_phi=phi, table_mus=n(settings.table_mus, 6))
 
 
 @dataclass(frozen=True)
