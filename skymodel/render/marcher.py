@@ -138,9 +138,9 @@ class MarchSettings:
     # the spherical correction (orders >= 2) formed on every other azimuth node and read back
     # linearly (an even table_phi; multiple_scattering._SphericalTransport)
     spherical_coarse_phi: bool = False
-    # the scattering orders from this one on (after the spherically corrected ones) solved on
-    # every other azimuth node, their sum read back linearly (an even table_phi; 0 = none;
-    # multiple_scattering.CoarseOrders)
+    # the scattering orders from this one on (3 or later), except those spherically corrected
+    # (spherical_orders), solved on every other azimuth node and their sum read back linearly
+    # (an even table_phi; 0 = none; multiple_scattering.CoarseOrders)
     coarse_phi_from_order: int = 0
     peak_aureole: bool = True  # add the light scattered 2+ times in the cut forward peaks (skymodel.render.aureole)
     peak_diffuse: bool = False  # scatter the diffuse light near the horizon in the cut peaks (skymodel.render.peak_diffuse)
@@ -156,10 +156,9 @@ class MarchSettings:
         if self.table_mu_horizon_nodes and not 0 < int(self.table_mu_horizon_nodes) < int(self.table_mu) // 2:
             raise SkymodelInputError("table_mu_horizon_nodes", self.table_mu_horizon_nodes,
                                      f"0 or an integer in [1, {int(self.table_mu) // 2 - 1}] (table_mu / 2 - 1)")
-        if self.coarse_phi_from_order and not int(self.coarse_phi_from_order) > max(2, int(self.spherical_orders)):
+        if self.coarse_phi_from_order and not int(self.coarse_phi_from_order) >= 3:
             raise SkymodelInputError("coarse_phi_from_order", self.coarse_phi_from_order,
-                                     f"0 or an order above {max(2, int(self.spherical_orders))} "
-                                     "(after the spherically corrected ones)")
+                                     "0 or a scattering order of 3 or more")
         if self.coarse_phi_from_order and int(self.table_phi) % 2:
             raise SkymodelInputError("table_phi", self.table_phi,
                                      "an even count with coarse_phi_from_order (orders on every other azimuth)")
