@@ -216,9 +216,9 @@ def test_coarse_azimuths_need_an_even_count_and_a_late_order():
 def test_coarse_orders_follow_every_order_on_all_azimuths():
     """Orders 4.. on every other azimuth (``coarse_phi_from_order=4``) against every order on all
     of them, at sunset in haze on small tables: the diffuse orders are smooth in the azimuth, so the
-    multiple scattering must stay within 0.3 % (measured here: 0.15 %; at sun 30 and -4 degrees 0.08 and
-    0.14 %); the series' convergence
-    (sizes scaled to the fine grid) stops at the same order."""
+    multiple scattering must stay within 0.3 % (measured here: 0.15 %; with the sun at 30 and -4
+    degrees 0.08 and 0.14 %), and the series (its sizes scaled to the fine grid) stops at the same
+    order."""
     from dataclasses import replace
 
     from skymodel.render.marcher import solve_sky
