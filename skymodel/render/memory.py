@@ -9,7 +9,8 @@ the largest phase, not the sum:
   sun-transmittance table (:data:`SUN_TABLE_BYTES_PER_SAMPLE` per ray sample, altitudes x
   x-nodes x steps) and the multiple-scattering solve (:data:`SOLVE_BYTES` plus
   :data:`TRANSPORT_COPIES` float64 transport matrices of (table_altitudes x table_mu)^2 x
-  solver wavelengths);
+  solver wavelengths plus :data:`FIELD_COPIES` float32 fields of solver wavelengths x
+  table_mu x table_phi x table_altitudes x table_mus);
 * ``bands``: marching one band of directions exactly, ``min(chunk, MARCH_PIECE, directions
   marched exactly) x view_steps x n_wl`` float64 values (the sky-view table's sun cap, or the
   pixels near the sun of a render marched directly), :data:`BAND_COPIES` of them alive at once
@@ -62,12 +63,19 @@ BASE_BYTES = 90 * 1024**2
 #: at f78aa99: 23 preview, 15 final; 366 and 345 before #23's speed work).
 SUN_TABLE_BYTES_PER_SAMPLE = 25.0
 #: The tables' build (the multiple-scattering solve and what ``solve_sky`` builds around it) apart from the
-#: transport matrices [bytes] (fitted with :data:`TRANSPORT_COPIES` to ``solve_sky``'s ``tracemalloc`` peak
-#: at f78aa99: 0.167 GiB preview, 0.592 final, of which the solve 0.118 and 0.588; 0.39 GiB before #23's
-#: speed work).
-SOLVE_BYTES = 0.15 * GIB
-#: float64 transport matrices ((table_altitudes x table_mu)^2 x solver wavelengths) alive at once (measured).
-TRANSPORT_COPIES = 1.6
+#: transport matrices and the fields [bytes], fitted with :data:`TRANSPORT_COPIES` and :data:`FIELD_COPIES`
+#: to ``solve_sky``'s ``tracemalloc`` peak (81 wavelengths, the default sky) at 39cc156: 0.122 GiB preview,
+#: 0.958 final with 12 solver azimuths, 1.466 final (24), which the fit reproduces, and 1.866 reference,
+#: which it puts at 1.83. Before (f78aa99, no field term): 0.15 GiB and 1.6 transport matrices, which
+#: read `final`'s 24 azimuths 0.5 GiB low.
+SOLVE_BYTES = 0.086 * GIB
+#: float64 transport matrices ((table_altitudes x table_mu)^2 x solver wavelengths) alive at once (fitted:
+#: the float32 matrix M and its work arrays).
+TRANSPORT_COPIES = 0.73
+#: float32 fields (solver wavelengths x table_mu x table_phi x table_altitudes x table_mus) alive at once at
+#: the solve's peak (fitted: the orders' source, radiance, the scattering step's modes, the transport's
+#: layouts; the spherical correction's and the coarse orders' arrays are smaller).
+FIELD_COPIES = 6.8
 #: float64 arrays per direction marched exactly (view_steps x n_wl) alive at once, over the marcher's
 #: threads, for min(chunk, MARCH_PIECE, directions marched exactly) directions in flight: the sun cap's
 #: nodes of the sky-view table, or the pixels near the sun of a render marched directly (the direction
@@ -208,8 +216,9 @@ def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=
     pixels = w * h if n_pixels is None else int(n_pixels)
     n_ms = _n_solver_wavelengths(n_wl, wavelengths_nm, s.ms_wavelength_step_nm)
     transport = (s.table_altitudes * s.table_mu) ** 2 * n_ms * 8.0
+    field = n_ms * s.table_mu * s.table_phi * s.table_altitudes * s.table_mus * 4.0
     sun_build = SUN_TABLE_BYTES_PER_SAMPLE * s.sun_table_altitudes * s.sun_table_x * s.sun_table_steps
-    tables = max(sun_build, SOLVE_BYTES + TRANSPORT_COPIES * transport)
+    tables = max(sun_build, SOLVE_BYTES + TRANSPORT_COPIES * transport + FIELD_COPIES * field)
     grid_dirs = 0 if s.exact else (s.grid_zenith + s.grid_zenith_ground) * s.grid_azimuth
     kept = KEPT_TABLES * transport + grid_dirs * n_wl * 8 * 3
     per_direction = s.view_steps * n_wl * 8.0  # one float64 band array per marched direction
