@@ -106,8 +106,9 @@ class Quality:
 #: sampled 7.5 degrees either side of the sun's azimuth, worst -2.03 -> -0.98 % (650 nm, 89/4.9),
 #: desert -4 degrees' 650 nm median 0.73 -> 0.66 %, every other scene within its rules as before
 #: (16-20 azimuths alias rural 5 degrees' mean; notebooks/azimuth_count); the two halvings keep it
-#: within 0.15 % of every order on 24 azimuths for 28.5 s against 21.5 s of cold 4096x2048 build
-#: (24 azimuths on every order: 30.5 s).
+#: within 0.19 % of every order on 24 azimuths on the truth's views (desert -4; the other scenes 0.1 %);
+#: the cold 4096x2048 build 21.3-21.6 -> 26.0-27.1 s, its peak 1.14 -> 1.57 GiB (24 azimuths on every
+#: order: 29.7-31.1 s; docs/benchmarks.md).
 QUALITIES: dict[str, Quality] = {
     "preview": Quality(
         "preview",
