@@ -200,6 +200,7 @@ def test_coarse_azimuths_read_back_linearly():
 
 
 def test_coarse_azimuths_need_an_even_count_and_a_late_order():
+    """The two halvings are refused, naming the parameter, where they cannot apply."""
     from skymodel.errors import SkymodelInputError
 
     with pytest.raises(SkymodelInputError, match="table_phi"):
@@ -230,5 +231,6 @@ def test_coarse_orders_follow_every_order_on_all_azimuths():
                          ms_wavelength_step_nm=100, peak_aureole=False, spherical_orders=3, spherical_tail=True)
     coarse = replace(base, coarse_phi_from_order=4)
     full, half = (SkyMarcher(prof, 2.0, 180.0, 0.0, s).radiance(d).multiple for s in (base, coarse))
+    assert not np.array_equal(half, full)  # the coarse orders ran
     np.testing.assert_allclose(half, full, rtol=0.003)
     assert solve_sky(prof, base).field.orders == solve_sky(prof, coarse).field.orders
