@@ -14,7 +14,7 @@ orig = ms._SphericalTransport.correction
 rat, cols = [], []
 def corr(self, j, lg, col):
     r = orig(self, j, lg, col)
-    rat.append(r[..., self.sub].copy()); cols.append(col[..., self.sub].copy())
+    rat.append(r[..., :self.n_sub].copy()); cols.append(col[..., :self.n_sub].copy())
     return r
 ms._SphericalTransport.correction = corr
 scene, preset = sys.argv[1], sys.argv[2]

@@ -149,6 +149,12 @@ class MarchSettings:
     chunk: int = 2048  # directions per batch (memory ~ chunk * view_steps * n_wl * 8 B * 6)
     earth_shadow: bool = True  # False: the planet blocks no sunlight (for measuring the shadow's effect)
 
+    @property
+    def halves_azimuths(self) -> bool:
+        """Whether some of the solve runs on every other azimuth node (spherical_coarse_phi or
+        coarse_phi_from_order): table_phi must then be even."""
+        return bool(self.spherical_coarse_phi or self.coarse_phi_from_order)
+
     def __post_init__(self):
         # checked when the settings are made, before any table or solve
         if not 0.0 <= float(self.view_depth_share) <= 0.95:
@@ -159,12 +165,9 @@ class MarchSettings:
         if self.coarse_phi_from_order and not int(self.coarse_phi_from_order) >= 3:
             raise SkymodelInputError("coarse_phi_from_order", self.coarse_phi_from_order,
                                      "0 or a scattering order of 3 or more")
-        if self.coarse_phi_from_order and int(self.table_phi) % 2:
-            raise SkymodelInputError("table_phi", self.table_phi,
-                                     "an even count with coarse_phi_from_order (orders on every other azimuth)")
-        if self.spherical_coarse_phi and int(self.table_phi) % 2:
-            raise SkymodelInputError("table_phi", self.table_phi,
-                                     "an even count with spherical_coarse_phi (the correction on every other azimuth)")
+        if self.halves_azimuths and int(self.table_phi) % 2:
+            raise SkymodelInputError("table_phi", self.table_phi, "an even count with spherical_coarse_phi or "
+                                     "coarse_phi_from_order (work on every other azimuth node)")
         if self.table_mu_horizon_nodes and not 0.0 < float(self.table_mu_horizon_deg) < 90.0:
             raise SkymodelInputError("table_mu_horizon_deg", self.table_mu_horizon_deg, "degrees in (0, 90)")
 

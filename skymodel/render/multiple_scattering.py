@@ -1361,13 +1361,15 @@ class _SphericalTransport:
         wl = np.asarray(wavelengths_nm, float)
         n_probe = int(np.clip(np.ceil((wl[-1] - wl[0]) / max(probe_step_nm, 1e-9)) + 1, 1, wl.size))
         self.probe = np.unique(np.round(np.linspace(0, wl.size - 1, n_probe)).astype(int))
-        self.to_all = None if self.probe.size == wl.size else linear_interp_matrix(wl[self.probe], wl)  # (n_probe, n_wl)
+        # (n_probe, n_wl), float32 (applied to the factor in float32: in float64 it was the solve's
+        # largest transient array)
+        self.to_all = (None if self.probe.size == wl.size
+                       else linear_interp_matrix(wl[self.probe], wl).astype(np.float32))
         self.n_h, self.n_mu, self.n_phi, self.n_mus = h_nodes.size, mu_nodes.size, phi_nodes.size, mus_nodes.size
         self.mus_nodes = mus_nodes
-        # the sun nodes corrected: the lowest ones (mus_nodes ascend), ``n_sub`` of them
-        self.sub = np.nonzero(mus_nodes <= np.sin(np.radians(max_elevation_deg)))[0]
-        self.n_sub = self.sub.size
-        assert np.array_equal(self.sub, np.arange(self.n_sub)), "mus_nodes must ascend"
+        # the sun nodes corrected: the lowest ``n_sub`` of them (mus_nodes ascend)
+        assert np.all(np.diff(mus_nodes) > 0), "mus_nodes must ascend"
+        self.n_sub = int(np.count_nonzero(mus_nodes <= np.sin(np.radians(max_elevation_deg))))
         n_rays, n_steps = t.shape
         self.n_p = self.n_phi * self.n_sub  # output (phi, corrected sun node) pairs
         self.n_rays, self.n_steps = n_rays, n_steps
@@ -1382,7 +1384,7 @@ class _SphericalTransport:
         self.inv_sigma = (None if sigma_nodes is None  # (n_h, P)
                           else (1.0 / _safe(sigma_nodes))[:, self.probe].astype(f32))
         self.weight = np.ascontiguousarray(weight[..., self.probe], dtype=f32)  # (rays, steps, n_probe)
-        mus_sub = mus_nodes[self.sub]
+        mus_sub = mus_nodes[:self.n_sub]
         self.cs = _ray_sun_cosine(mu0, phi_nodes, mus_sub)  # (rays, n_p)
         self.mus_p = np.tile(mus_sub, self.n_phi)
         self.r0, self.t, self.r_t = r0, t, R + h
@@ -1478,7 +1480,7 @@ class _SphericalTransport:
         r = np.where(col > 0.0, sph / np.where(col > 0.0, col, 1.0), 1.0)  # (P, rays, n_phi, n_sub)
         if self.coarse:  # back on the solver's azimuths (at the probe wavelengths: n_wl / P times less work)
             r = azimuths_to_fine(r, axis=2)
-        if self.to_all is not None:  # in float32 (in float64 it was the solve's largest transient array)
-            r = np.einsum("p...,pw->w...", r.astype(np.float32), self.to_all.astype(np.float32))
+        if self.to_all is not None:
+            r = np.einsum("p...,pw->w...", r.astype(np.float32), self.to_all)
         r = r.reshape(n_wl, self.n_h, self.n_mu, self.fine_n_phi, self.n_sub).transpose(0, 2, 3, 1, 4)
         return np.ascontiguousarray(r, dtype=np.float32).reshape(n_wl, self.n_mu * self.fine_n_phi, self.n_h, self.n_sub)

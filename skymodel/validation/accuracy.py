@@ -109,7 +109,7 @@ def scale_angular(settings, factor: float):
     # the zenith nodes within table_mu_horizon_deg of the horizon keep their share of each half
     horizon = settings.table_mu_horizon_nodes and min(half - 1, n(settings.table_mu_horizon_nodes, 1))
     phi = n(settings.table_phi, 3)
-    if (settings.spherical_coarse_phi or settings.coarse_phi_from_order) and phi % 2:
+    if settings.halves_azimuths and phi % 2:
         phi += 1
     return replace(settings, grid_zenith=n(settings.grid_zenith, 8), grid_zenith_ground=n(settings.grid_zenith_ground, 4),
                    grid_azimuth=2 * n((settings.grid_azimuth - 1) / 2, 3) + 1, table_mu=2 * half,
