@@ -313,7 +313,8 @@ def split_batches(batches, workers, seed, seconds_per_path=None, chunk_s=CHUNK_S
 
 def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers=1, seed_from=1):
     """Trace ``scene`` until every direction's relative standard error is ``target_se`` (or
-    it has ``max_paths`` paths, or ``budget_s`` wall-clock seconds have passed), saving after
+    it has ``max_paths`` paths, or ``budget_s`` wall-clock seconds have passed: checked after
+    every chunk; with workers the chunks still running then are dropped), saving after
     every chunk of a round (:func:`split_batches`: at most :data:`CHUNK_S` of one core each,
     so a long round is not lost when the run is stopped). ``workers`` > 1 splits each round's
     batches into chunks with their own seeds over that many processes (forked; each process
@@ -371,7 +372,9 @@ def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers
                 scene.save_mc(prof, mc)
                 log(f"  {scene.name}: {rows.size} directions +{n} paths (seed {s}, {res.time_s:.0f} s); "
                     f"worst rel se now {100 * np.max(mc['se'] / mc['mean']):.2f} %")
-                if pool is None and time.perf_counter() - t0 > budget_s:
+                # over the budget: stop (with a pool the chunks still in flight are lost, at
+                # most one CHUNK_S chunk per worker; what finished is saved above)
+                if time.perf_counter() - t0 > budget_s:
                     break
     finally:
         if pool is not None:

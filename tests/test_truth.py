@@ -217,6 +217,49 @@ def test_a_parallel_round_pools_chunks_with_their_own_seeds(tmp_path, monkeypatc
     assert np.all(np.abs(a["mean"] - b["mean"]) < 5.0 * np.hypot(a["se"], b["se"]))
 
 
+def test_mc_with_workers_stops_at_the_budget_within_a_round(tmp_path, monkeypatch):
+    """bench_truth mc --workers: the budget is checked after every chunk, as without workers,
+    so a round whose chunks outrun it stops there (what finished is saved; the chunks still
+    running are dropped) instead of running all its chunks."""
+    import types
+
+    bt = _bench_truth(monkeypatch)
+    clock = types.SimpleNamespace(now=0.0)
+    monkeypatch.setattr(bt, "time", types.SimpleNamespace(perf_counter=lambda: clock.now))
+
+    def fake_chunk(task):  # a chunk traced at once (the pool's processes run this copy)
+        rows, n, seed = task
+        nw = bt._WORK["prof"].n_wavelengths
+        return rows, n, seed, types.SimpleNamespace(radiance=np.ones((rows.size, nw)),
+                                                    stderr=np.full((rows.size, nw), 1e-3), time_s=1.0)
+
+    fake_chunk.__module__, fake_chunk.__qualname__ = "bench_truth", "_trace_chunk"
+    monkeypatch.setattr(bt, "_trace_chunk", fake_chunk)
+    merge, merged = bt._merge, []
+
+    def merge_then_late(mc, rows, res, n, seed):  # the budget runs out with the first chunk
+        merge(mc, rows, res, n, seed)
+        merged.append(seed)
+        if len(merged) == 2:  # the pilot, then the round's first chunk
+            clock.now = 1e9
+
+    monkeypatch.setattr(bt, "_merge", merge_then_late)
+
+    class Two(bt.Scene):
+        def __init__(self, cache):
+            super().__init__("rural", 60.0, cache)
+            self.views, self.dirs = self.views[:2], self.dirs[:2]
+
+    sc = Two(str(tmp_path))
+    tasks = []
+    split = bt.split_batches
+    monkeypatch.setattr(bt, "split_batches", lambda *a, **k: tasks.extend(split(*a, **k)) or tasks)
+    _, mc = bt.run_mc(sc, 0.01, 200000, 1000, 3600.0, log=lambda *_: None, workers=2)
+    assert len(tasks) >= 2  # the round had more chunks than the one that finished in time
+    assert len(merged) == 2 and mc["seeds"].size == 2
+    assert bt.read_run(sc.mc_file(sc.mc_profile()))["seeds"].size == 2
+
+
 def test_runs_traced_apart_pool_as_one_run_and_shared_seeds_are_refused():
     """bench_truth pool: two runs of one scene from disjoint seeds (``mc --seed-from``) pool
     into the estimate that merging their batches one by one gives; a seed used by both
