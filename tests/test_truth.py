@@ -31,6 +31,14 @@ def _bench_truth(monkeypatch=None):
     return bt
 
 
+def _two_view_scene(bt, cache):
+    """bench_truth's rural 60 deg scene cut to its first two views (no committed run matches
+    them, so a test traces its own), caching under ``cache``."""
+    sc = bt.Scene("rural", 60.0, cache)
+    sc.views, sc.dirs = sc.views[:2], sc.dirs[:2]
+    return sc
+
+
 def test_statistics_of_known_errors():
     mc = np.ones((5, 2))
     marcher = mc * (1.0 + np.array([[0.01, -0.02], [-0.03, 0.0], [0.002, 0.004], [0.5, 0.5], [-0.004, 0.001]]))
@@ -201,14 +209,9 @@ def test_a_parallel_round_pools_chunks_with_their_own_seeds(tmp_path, monkeypatc
     assert [t[1] for t in tasks] == [3000, 2000, 2000, 2000] and [t[2] for t in tasks] == [11, 12, 13, 14]
     assert all(t[1] * 0.1 <= 300.0 for t in tasks[:3])
 
-    class Two(bt.Scene):  # two views: no committed run matches them
-        def __init__(self, cache):
-            super().__init__("rural", 60.0, cache)
-            self.views, self.dirs = self.views[:2], self.dirs[:2]
-
     runs = {}
     for workers in (1, 2):
-        sc = Two(str(tmp_path / f"w{workers}"))
+        sc = _two_view_scene(bt, str(tmp_path / f"w{workers}"))
         _, mc = bt.run_mc(sc, 0.03, 6000, 1000, 60.0, log=lambda *_: None, workers=workers)
         assert np.all(mc["n"] > 1000) and len(set(mc["seeds"].tolist())) == mc["seeds"].size
         assert os.path.exists(sc.mc_file(sc.mc_profile()))
@@ -245,15 +248,15 @@ def test_mc_with_workers_stops_at_the_budget_within_a_round(tmp_path, monkeypatc
 
     monkeypatch.setattr(bt, "_merge", merge_then_late)
 
-    class Two(bt.Scene):
-        def __init__(self, cache):
-            super().__init__("rural", 60.0, cache)
-            self.views, self.dirs = self.views[:2], self.dirs[:2]
+    sc = _two_view_scene(bt, str(tmp_path))
+    tasks, split = [], bt.split_batches
 
-    sc = Two(str(tmp_path))
-    tasks = []
-    split = bt.split_batches
-    monkeypatch.setattr(bt, "split_batches", lambda *a, **k: tasks.extend(split(*a, **k)) or tasks)
+    def split_and_record(*args, **kwargs):
+        out = split(*args, **kwargs)
+        tasks.extend(out)
+        return out
+
+    monkeypatch.setattr(bt, "split_batches", split_and_record)
     _, mc = bt.run_mc(sc, 0.01, 200000, 1000, 3600.0, log=lambda *_: None, workers=2)
     assert len(tasks) >= 2  # the round had more chunks than the one that finished in time
     assert len(merged) == 2 and mc["seeds"].size == 2
