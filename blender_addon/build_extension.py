@@ -46,6 +46,8 @@ WHEELS = {
     "typing_extensions==4.16.0": {"any": ("manylinux_2_28_x86_64", "typing_extensions-4.16.0-py3-none-any.whl")},
     # the IANA zones for a named --timezone / the panel's Time Zone where the system has none (Windows)
     "tzdata==2026.6": {"any": ("manylinux_2_28_x86_64", "tzdata-2026.6-py2.py3-none-any.whl")},
+    # numpy's BLAS held to one thread in the solver's threaded loops (skymodel.render.threads)
+    "threadpoolctl==3.8.0": {"any": ("manylinux_2_28_x86_64", "threadpoolctl-3.8.0-py3-none-any.whl")},
     "scipy==1.17.1": {
         "linux-x64": ("manylinux_2_28_x86_64",
                       "scipy-1.17.1-cp311-cp311-manylinux_2_27_x86_64.manylinux_2_28_x86_64.whl"),

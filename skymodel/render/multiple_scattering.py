@@ -878,7 +878,7 @@ def combined_phase_modes(species: list, grid: TableGrid) -> np.ndarray:
     return q
 
 
-def scattered_source(radiance: np.ndarray, species, grid: TableGrid) -> np.ndarray:
+def scattered_source(radiance: np.ndarray, species, grid: TableGrid, out: np.ndarray | None = None) -> np.ndarray:
     """The source of the next order, J_{n+1} = sum over species of sigma_s(h) P L_n:
     ``radiance`` L_n (dir layout, W m^-2 sr^-1 nm^-1) -> J_{n+1} (dir layout, the same per
     metre), float32. ``species``: the list of :func:`scattering_species` or its
@@ -895,37 +895,94 @@ def scattered_source(radiance: np.ndarray, species, grid: TableGrid) -> np.ndarr
     them on one thread. One n_phi x (n_h n_mus) product per wavelength and zenith node, as
     before, was threaded here from between 16 and 20 azimuths on, and those threads stalled
     whenever the other core was busy: 0.11-0.13 s per transform at 24 azimuths idle or beside
-    a busy loop, 1.2-2.8 s under load ~4, against 0.03 s now (notebooks/azimuth_count)."""
+    a busy loop, 1.2-2.8 s under load ~4, against 0.03 s now (notebooks/azimuth_count).
+
+    One wavelength at a time (the same products as on the whole field at once): the modes
+    in between need one wavelength's array, not a field's. ``out``: a float32 array of the
+    field's size (any shape, :class:`WorkArrays`) for J_{n+1}; a new one when None."""
     n_wl, n_mu, n_phi, n_h, n_mus = grid.n_wl, grid.n_mu, grid.n_phi, grid.n_h, grid.n_mus
     assert radiance.shape == (n_wl, grid.n_dir, n_h, n_mus), radiance.shape
     q = species if isinstance(species, np.ndarray) else combined_phase_modes(species, grid)
     forward = np.ascontiguousarray(_mode_projection(grid).T, dtype=np.float32)  # (m, phi)
+    back = azimuth_modes(grid).astype(np.float32)  # (phi, m)
+    dtype = np.result_type(forward, radiance)
+    l_m = np.empty(radiance.shape, dtype=dtype) if out is None else _as_field(out, radiance.shape, dtype)
+    j_m = np.empty((n_mu, n_phi, n_h, n_mus), dtype=dtype)
 
-    def by_altitude(a):  # (n_wl, n_mu, phi or m, n_h, n_mus) viewed as (n_wl, n_mu, n_h, phi or m, n_mus)
-        return a.reshape(n_wl, n_mu, n_phi, n_h, n_mus).transpose(0, 1, 3, 2, 4)
+    def by_altitude(a):  # (n_mu, phi or m, n_h, n_mus) viewed as (n_mu, n_h, phi or m, n_mus)
+        return a.reshape(n_mu, n_phi, n_h, n_mus).transpose(0, 2, 1, 3)
 
-    # coefficients, laid out (n_wl, n_mu, m, n_h, n_mus) as the field's (n_wl, n_mu, phi, ...)
-    l_m = np.empty(radiance.shape, dtype=np.result_type(forward, radiance))
-    np.matmul(forward, by_altitude(radiance), out=by_altitude(l_m))
-    j_m = np.empty_like(l_m)
-    # per (wavelength, mode, altitude): Q (mu, mu') @ L_m (mu', mu_s), on strided views
-    np.matmul(q, l_m.reshape(n_wl, n_mu, n_phi, n_h, n_mus).transpose(0, 2, 3, 1, 4),
-              out=j_m.reshape(n_wl, n_mu, n_phi, n_h, n_mus).transpose(0, 2, 3, 1, 4))
-    # back to the azimuth nodes, into l_m's memory: (n_wl, n_mu, phi, n_h, n_mus), the dir layout
-    np.matmul(azimuth_modes(grid).astype(np.float32), by_altitude(j_m), out=by_altitude(l_m))
+    def by_mode(a):  # (n_mu, m, n_h, n_mus) viewed as (m, n_h, n_mu, n_mus)
+        return a.reshape(n_mu, n_phi, n_h, n_mus).transpose(1, 2, 0, 3)
+
+    for w in range(n_wl):
+        # coefficients, laid out (n_mu, m, n_h, n_mus) as the field's (n_mu, phi, ...)
+        np.matmul(forward, by_altitude(radiance[w]), out=by_altitude(l_m[w]))
+        # per (mode, altitude): Q (mu, mu') @ L_m (mu', mu_s), on strided views
+        np.matmul(q[w], by_mode(l_m[w]), out=by_mode(j_m))
+        # back to the azimuth nodes, into l_m's memory: (n_mu, phi, n_h, n_mus), the dir layout
+        np.matmul(back, by_altitude(j_m), out=by_altitude(l_m[w]))
     return l_m.reshape(n_wl, grid.n_dir, n_h, n_mus)
 
 
 def gathered_radiance(source: np.ndarray, ground_radiance: np.ndarray, M: np.ndarray, G: np.ndarray,
-                      grid: TableGrid) -> np.ndarray:
+                      grid: TableGrid, out: np.ndarray | None = None) -> np.ndarray:
     """Radiance arriving at every grid node in the independent columns, L = M J + G L_g:
     ``source`` J (dir layout, W m^-2 sr^-1 nm^-1 m^-1), ``ground_radiance`` L_g (n_mus,
-    n_wl) the radiance leaving the Lambertian ground -> L (dir layout, W m^-2 sr^-1 nm^-1)."""
-    n_wl, n_rays = grid.n_wl, grid.n_h * grid.n_mu
-    assert ground_radiance.shape == (grid.n_mus, n_wl), ground_radiance.shape
-    l_ray = np.matmul(M, to_ray_layout(source, grid))
-    l_ray.reshape(n_wl, n_rays, grid.n_phi, grid.n_mus)[...] += G[:, :, None, None] * ground_radiance.T[:, None, None, :]
-    return to_dir_layout(l_ray, grid)
+    n_wl) the radiance leaving the Lambertian ground -> L (dir layout, W m^-2 sr^-1 nm^-1).
+    One wavelength at a time, through arrays of one wavelength laid out by grid ray (the
+    products of M by the whole field in the ray layout took two more field-sized copies).
+    ``out``: a float32 array of the field's size (any shape, :class:`WorkArrays`) for L; a
+    new one when None."""
+    n_wl, n_mu, n_phi, n_h, n_mus = grid.n_wl, grid.n_mu, grid.n_phi, grid.n_h, grid.n_mus
+    n_rays = n_h * n_mu
+    assert ground_radiance.shape == (n_mus, n_wl), ground_radiance.shape
+    dtype = np.result_type(M, source)
+    dir_shape = (n_wl, grid.n_dir, n_h, n_mus)
+    out = np.empty(dir_shape, dtype=dtype) if out is None else _as_field(out, dir_shape, dtype)
+    src_ray = np.empty((n_rays, n_phi * n_mus), dtype=dtype)
+    l_ray = np.empty_like(src_ray)
+    for w in range(n_wl):
+        # dir layout (n_mu, phi, n_h, n_mus) <-> ray layout (n_h, n_mu, phi, n_mus)
+        np.copyto(src_ray.reshape(n_h, n_mu, n_phi, n_mus),
+                  source[w].reshape(n_mu, n_phi, n_h, n_mus).transpose(2, 0, 1, 3))
+        np.matmul(M[w], src_ray, out=l_ray)
+        l_ray.reshape(n_rays, n_phi, n_mus)[...] += G[w, :, None, None] * ground_radiance[:, w]
+        np.copyto(out[w].reshape(n_mu, n_phi, n_h, n_mus), l_ray.reshape(n_h, n_mu, n_phi, n_mus).transpose(1, 2, 0, 3))
+    return out
+
+
+class WorkArrays:
+    """Arrays kept from one order of scattering to the next, by name. Each order's
+    field-sized arrays (0.16 GB at ``final``, 41 wavelengths), allocated anew, were fresh
+    memory that the kernel zeroed page by page each time (perf, cold ``final`` 512x256: a
+    tenth of the build's CPU time in clearing pages). ``get`` returns the named array viewed
+    with ``shape`` while its size and type stay; otherwise (the coarse orders' smaller fields)
+    the old one is let go before a new one is made."""
+
+    def __init__(self):
+        self._flat = {}
+
+    def get(self, name: str, shape: tuple, dtype=np.float32) -> np.ndarray:
+        size, dtype = int(np.prod(shape)), np.dtype(dtype)
+        flat = self._flat.get(name)
+        if flat is None or flat.size != size or flat.dtype != dtype:
+            self._flat.pop(name, None)
+            flat = self._flat[name] = np.empty(size, dtype=dtype)
+        return flat.reshape(shape)
+
+
+def abs_sums(a: np.ndarray) -> np.ndarray:
+    """Sum of |a| over all but the first axis (the wavelengths), float64, one wavelength
+    at a time (no field-sized temporary)."""
+    work = np.empty(a.shape[1:], dtype=a.dtype)
+    return np.array([np.abs(a[w], out=work).sum(dtype=np.float64) for w in range(a.shape[0])])
+
+
+def _as_field(a: np.ndarray, shape: tuple, dtype) -> np.ndarray:
+    """``a`` (a contiguous work array of the same size and type) viewed with ``shape``."""
+    assert a.dtype == dtype and a.size == int(np.prod(shape)) and a.flags.c_contiguous, (a.dtype, a.shape, shape)
+    return a.reshape(shape)
 
 
 def ground_diffuse_irradiance(radiance: np.ndarray, grid: TableGrid) -> np.ndarray:
@@ -1054,6 +1111,7 @@ def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G:
     j_n = e_n = last_ratio = None
     scale, fine_abs = 1.0, 0.0  # the coarse sums' weight, the fine orders' share of sum |J|
     n_sub = 0 if spherical is None else spherical.n_sub
+    work = WorkArrays()  # J_n and L_n, kept from order to order
     for n in range(2, limit + 1):
         if coarse is not None and n == coarse.from_order:  # on to half the azimuths
             species = peak = None  # the fine grid's, freed before the coarse ones are made
@@ -1061,19 +1119,22 @@ def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G:
             radiance = azimuth_pair_mean(radiance, grid.n_mu, fine_grid.n_phi)
             if last_ratio is not None:
                 last_ratio = azimuth_pair_mean(last_ratio, grid.n_mu, fine_grid.n_phi)
-            scale, fine_abs = fine_grid.n_phi / grid.n_phi, float(np.abs(j_ms).sum())
+            scale, fine_abs = fine_grid.n_phi / grid.n_phi, float(abs_sums(j_ms).sum())
             j_ms = np.zeros((grid.n_wl, grid.n_dir, grid.n_h, grid.n_mus), dtype=np.float32)
-        j_n = scattered_source(radiance, species, grid)
+        field = (grid.n_wl, grid.n_dir, grid.n_h, grid.n_mus)
+        j_n = scattered_source(radiance, species, grid, out=work.get("source", field))
         if peak:
             peak.add_source(radiance, j_n)
         j_ms += j_n
         series.orders = n
-        size = scale * float(np.abs(j_n).sum()) / max(fine_abs + scale * float(np.abs(j_ms).sum()), 1e-300)
+        sizes_n = abs_sums(j_n)  # per wavelength
+        size = scale * float(sizes_n.sum()) / max(fine_abs + scale * float(abs_sums(j_ms).sum()), 1e-300)
         series.contributions.append(size)
         if progress is not None:
             progress(n, size)
         lg = albedo[None, :] / np.pi * ground_diffuse_irradiance(radiance, grid)  # radiance leaving the ground
-        radiance = gathered_radiance(j_n, lg, M, G, grid)
+        # (the last order's L_n is not read after this: L_{n+1} takes its array)
+        radiance = gathered_radiance(j_n, lg, M, G, grid, out=work.get("radiance", field))
         if spherical is not None and n <= spherical_orders:
             ratio = spherical.correction(j_n, lg, radiance)  # at the first n_sub sun nodes
             radiance[..., :n_sub] *= ratio
@@ -1082,7 +1143,7 @@ def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G:
             radiance[..., :n_sub] *= last_ratio
         e_n = ground_diffuse_irradiance(radiance, grid)
         e_diffuse = e_diffuse + e_n
-        series.sizes.append(scale * np.abs(j_n).sum(axis=(1, 2, 3), dtype=np.float64))  # per wavelength
+        series.sizes.append(scale * sizes_n)
         if orders is None and size < tolerance:
             break
     if grid is not fine_grid:  # the coarse orders' sum and the last order back on the solver's azimuths
@@ -1172,12 +1233,13 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
             ground_t=rays.ground_t, h_nodes=grid.h_nodes, mu_nodes=grid.mu_nodes, phi_nodes=grid.phi_nodes,
             mus_nodes=grid.mus_nodes, wavelengths_nm=grid.wavelengths_nm, probe_step_nm=spherical_probe_step_nm,
             coarse_phi=spherical_coarse_phi, **sigma)
+    peak = PeakDiffuse(profile, medium, grid) if peak_diffuse else None
     coarse = None
     if coarse_phi_from_order:
         coarse_grid = coarse_azimuth_grid(grid)
         coarse = CoarseOrders(max(coarse_phi_from_order, 3, spherical_orders + 1), coarse_grid, lambda: (
             combined_phase_modes(scattering_species(profile, medium, coarse_grid), coarse_grid),
-            PeakDiffuse(profile, medium, coarse_grid) if peak_diffuse else None))
+            None if peak is None else peak.on_grid(coarse_grid)))
     # the first order's radiance goes straight into the series, which lets it go after order 2
     # (held here, it would keep one more field-sized array alive through every order)
     series = sum_scattering_orders(first_order_radiance(profile, medium, sun_table, grid, rays, M, G,
@@ -1185,8 +1247,7 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
                                    species, M, G, grid, profile.ground_albedo.astype(np.float32),
                                    orders=orders, max_orders=max_orders, tolerance=tolerance, spherical=spherical,
                                    spherical_orders=spherical_orders, spherical_tail=spherical_tail,
-                                   progress=progress,
-                                   peak=PeakDiffuse(profile, medium, grid) if peak_diffuse else None, coarse=coarse)
+                                   progress=progress, peak=peak, coarse=coarse)
     if orders is None:
         add_geometric_tail(series)
     # float32, as solved (the interpolation table is float32 too; a float64 copy was 0.13 GB at final)
@@ -1232,6 +1293,9 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
     is read from ``sun_table`` (medium 1) the way :meth:`SunTransmittance.optical_depth`
     reads it, reorganised for speed: its low-rank table is first interpolated to each
     sample's altitude, then along the distance parameter for every sun node, in float32.
+    The (azimuth, sun node) pairs in the Earth's shadow at every sample of a chunk's rays
+    are left out of it (their light is exactly 0): a quarter of them at ``final`` (rural,
+    the sun nodes down to -20 degrees), a third of the (sample, sun node) pairs being dark.
     """
     f32 = np.float32
     n_rays, n_steps = t.shape
@@ -1278,29 +1342,37 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
             tab_h = (tab[ih[a:b]] * (1 - fh[a:b, :, None, None]) + tab[ih[a:b] + 1] * fh[a:b, :, None, None])
             tab_h = tab_h.reshape(-1, tab.shape[-1])
             mus_t = (r0[a:b, None, None] * mus_p + t[a:b, :, None] * cs[a:b, None, :]) / r_t[a:b, :, None]  # (c, steps, n_p)
+            lit = slice(None)  # the (azimuth, sun node) columns computed: all, or those lit somewhere
+            if st.earth_shadow:
+                lo, hi = mu_lo[a:b, :, None], mu_hi[a:b, :, None]
+                cols = np.flatnonzero(np.any(mus_t > lo, axis=(0, 1)))
+                if cols.size == 0:
+                    continue
+                if cols.size < n_p:  # every sample of the chunk's rays in the Earth's shadow: exact zeros
+                    lit, mus_t = cols, mus_t[..., cols]
+            m = mus_t.shape[-1]
             # as SunTransmittance.optical_depth: under the horizon, the grazing ray
             xs = st._x_from_mu(rs[a:b, :, None], np.maximum(mus_t, mu_hor[a:b, :, None])) * x_scale
             j = np.clip(xs.astype(np.int64), 0, n_x - 2)
             fx = np.clip(xs - j, 0.0, 1.0).astype(f32)[..., None]
             row = (np.arange(c * n_steps).reshape(c, n_steps, 1) * n_x + j).ravel()
-            tau_k = np.take(tab_h, row, axis=0).reshape(c, n_steps, n_p, -1) * (1 - fx)
-            tau_k += np.take(tab_h, row + 1, axis=0).reshape(c, n_steps, n_p, -1) * fx
-            # optical depth per wavelength, laid out (c, n_wl, steps, n_p) for the matrix product below
+            tau_k = np.take(tab_h, row, axis=0).reshape(c, n_steps, m, -1) * (1 - fx)
+            tau_k += np.take(tab_h, row + 1, axis=0).reshape(c, n_steps, m, -1) * fx
+            # optical depth per wavelength, laid out (c, n_wl, steps, m) for the matrix product below
             # (minus the optical depth: the product with -W, exactly the negated sums)
-            tau = np.matmul(minus_wk_t, np.ascontiguousarray(tau_k.transpose(0, 3, 1, 2)).reshape(c, -1, n_steps * n_p),
-                            out=work[:c * n_wl * n_steps * n_p].reshape(c, n_wl, n_steps * n_p))
-            trans_sun = np.exp(tau, out=tau).reshape(c, n_wl, n_steps, n_p)
+            tau = np.matmul(minus_wk_t, np.ascontiguousarray(tau_k.transpose(0, 3, 1, 2)).reshape(c, -1, n_steps * m),
+                            out=work[:c * n_wl * n_steps * m].reshape(c, n_wl, n_steps * m))
+            trans_sun = np.exp(tau, out=tau).reshape(c, n_wl, n_steps, m)
             # visible fraction of the disc (0 in the Earth's shadow)
             if st.earth_shadow:
-                lo, hi = mu_lo[a:b, :, None], mu_hi[a:b, :, None]
                 vis = (mus_t >= hi).astype(f32)
                 part = (mus_t > lo) & (mus_t < hi)
                 if np.any(part):
                     vis[part] = st.visible_fraction(np.broadcast_to(hc[a:b, :, None], mus_t.shape)[part], mus_t[part])
                 trans_sun *= vis[:, None]
-            # sum over the steps for every species at once: (c, n_wl, K, steps) @ (c, n_wl, steps, n_p)
-            gathered = np.matmul(weights[a:b], trans_sun)  # (c, n_wl, K, n_p)
-            out[:, a:b] += np.einsum("cwkp,kcwp->wcp", gathered, phases[:, np.arange(a, b) % n_mu])
+            # sum over the steps for every species at once: (c, n_wl, K, steps) @ (c, n_wl, steps, m)
+            gathered = np.matmul(weights[a:b], trans_sun)  # (c, n_wl, K, m)
+            out[:, a:b, lit] += np.einsum("cwkp,kcwp->wcp", gathered, phases[:, np.arange(a, b) % n_mu][..., lit])
 
     chunks_in_threads(rays_of_thread, range(0, n_rays, chunk), SOLVER_THREADS)
     hit = np.nonzero(hits)[0]

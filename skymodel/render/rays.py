@@ -82,8 +82,15 @@ def direction_from_angles(zenith_deg, azimuth_deg):
     azimuth clockwise from north (degrees)."""
     z = np.radians(np.asarray(zenith_deg, dtype=float))
     a = np.radians(np.asarray(azimuth_deg, dtype=float))
-    z, a = np.broadcast_arrays(z, a)
-    return np.stack([np.sin(z) * np.sin(a), np.sin(z) * np.cos(a), np.cos(z)], axis=-1)
+    # the sines and cosines before broadcasting: a panorama's rows share a zenith angle and
+    # its columns an azimuth (a 4096x2048 map: 6144 of each instead of 8.4 million)
+    sz, cz, sa, ca = np.sin(z), np.cos(z), np.sin(a), np.cos(a)
+    shape = np.broadcast_shapes(z.shape, a.shape)
+    out = np.empty(shape + (3,))
+    np.multiply(sz, sa, out=out[..., 0])
+    np.multiply(sz, ca, out=out[..., 1])
+    out[..., 2] = cz
+    return out
 
 
 def sun_direction(elevation_deg, azimuth_deg):

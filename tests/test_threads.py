@@ -1,0 +1,89 @@
+"""skymodel.render.threads: the loops on threads, and numpy's BLAS held to one thread in them."""
+
+import threading
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_info, threadpool_limits
+
+from skymodel.render import threads
+from skymodel.render.threads import chunks_in_threads, in_threads, one_blas_thread
+
+
+def blas_threads() -> list[int]:
+    return [lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"]
+
+
+@pytest.fixture
+def two_blas_threads():
+    if not blas_threads():
+        pytest.skip("no BLAS library that threadpoolctl controls")
+    with threadpool_limits(2, user_api="blas"):  # as on a 2-core machine, whatever this one has
+        yield
+
+
+def test_results_in_order_on_threads():
+    assert in_threads(lambda i: i * i, range(7), 2) == [i * i for i in range(7)]
+    seen = []
+    chunks_in_threads(lambda own: seen.append(list(own)), range(0, 10, 2), 2)
+    assert sorted(seen) == [[0, 4, 8], [2, 6]]
+
+
+def test_blas_on_one_thread_inside_the_loops_only(two_blas_threads):
+    inside = in_threads(lambda i: (np.ones((64, 64)) @ np.ones((64, 64)), blas_threads())[1], range(4), 2)
+    assert all(set(t) == {1} for t in inside)
+    assert set(blas_threads()) == {2}
+
+
+class FakeController:
+    """Stands in for threadpoolctl's controller: records the BLAS thread count it is given."""
+
+    def __init__(self):
+        self.threads = 2
+
+    def limit(self, limits, user_api):
+        assert user_api == "blas"
+        before, self.threads = self.threads, limits
+        controller = self
+
+        class Limiter:
+            def restore_original_limits(self):
+                controller.threads = before
+
+        return Limiter()
+
+
+def test_concurrent_loops_share_one_limit(monkeypatch):
+    # two loops from two threads, the first to start ending first: the limit must outlive it,
+    # and the last one out gives BLAS its threads back (a fake controller: what OpenBLAS
+    # reports when its count is set from several threads is its own business)
+    fake = FakeController()
+    monkeypatch.setitem(threads._blas, "controller", fake)
+    first_in, first_out, second_in = threading.Event(), threading.Event(), threading.Event()
+    seen = []
+
+    def first(_):
+        first_in.set()
+        second_in.wait(10)
+
+    def second(_):
+        second_in.set()
+        first_out.wait(10)
+        seen.append(fake.threads)
+
+    a = threading.Thread(target=lambda: (in_threads(first, range(2), 2), first_out.set()))
+    a.start()
+    first_in.wait(10)
+    b = threading.Thread(target=lambda: in_threads(second, range(2), 2))
+    b.start()
+    a.join(10)
+    b.join(10)
+    assert seen == [1, 1] and fake.threads == 2 and threads._blas["depth"] == 0
+
+
+def test_limit_restored_after_an_error(two_blas_threads):
+    with pytest.raises(RuntimeError):
+        with one_blas_thread():
+            assert set(blas_threads()) == {1}
+            raise RuntimeError("in the loop")
+    assert set(blas_threads()) == {2}
