@@ -1333,14 +1333,23 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
     # chunk: allocated anew each time, its pages were zeroed by the kernel again and again
     chunk = max(1, max_elements // max(1, SOLVER_THREADS) // max(1, n_steps * n_p * n_wl))
 
+    def ground_light(rays):
+        """Direct sunlight reflected where the ``rays`` (indices, all meeting the ground) end:
+        (n_wl, rays, n_p) float32, at the ground point's own sun cosine."""
+        t_end = t[rays, -1] + 0.5 * dt[rays, -1]
+        mus_g = np.clip((r0[rays, None] * mus_p[None, :] + t_end[:, None] * cs[rays]) / R, -1.0, 1.0)
+        t_sun_g = st.transmittance(np.zeros_like(mus_g), mus_g, which=1)  # (G, n_p, n_wl)
+        return np.moveaxis((profile.ground_albedo / np.pi) * t_sun_g * np.maximum(mus_g, 0.0)[..., None]
+                           * ground_t[rays][:, None, :], -1, 0).astype(f32)
+
     def rays_of_thread(own_starts):
         work = np.empty(chunk * n_wl * n_steps * n_p, dtype=f32)
         for a in own_starts:
             b = min(n_rays, a + chunk)
             c = b - a
-            # the table interpolated to each sample's altitude: (c * steps * n_x, k)
-            tab_h = (tab[ih[a:b]] * (1 - fh[a:b, :, None, None]) + tab[ih[a:b] + 1] * fh[a:b, :, None, None])
-            tab_h = tab_h.reshape(-1, tab.shape[-1])
+            hit = a + np.flatnonzero(hits[a:b])
+            if hit.size:
+                out[:, hit] += ground_light(hit)
             mus_t = (r0[a:b, None, None] * mus_p + t[a:b, :, None] * cs[a:b, None, :]) / r_t[a:b, :, None]  # (c, steps, n_p)
             lit = slice(None)  # the (azimuth, sun node) columns computed: all, or those lit somewhere
             if st.earth_shadow:
@@ -1351,6 +1360,9 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
                 if cols.size < n_p:  # every sample of the chunk's rays in the Earth's shadow: exact zeros
                     lit, mus_t = cols, mus_t[..., cols]
             m = mus_t.shape[-1]
+            # the table interpolated to each sample's altitude: (c * steps * n_x, k)
+            tab_h = (tab[ih[a:b]] * (1 - fh[a:b, :, None, None]) + tab[ih[a:b] + 1] * fh[a:b, :, None, None])
+            tab_h = tab_h.reshape(-1, tab.shape[-1])
             # as SunTransmittance.optical_depth: under the horizon, the grazing ray
             xs = st._x_from_mu(rs[a:b, :, None], np.maximum(mus_t, mu_hor[a:b, :, None])) * x_scale
             j = np.clip(xs.astype(np.int64), 0, n_x - 2)
@@ -1375,13 +1387,6 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
             out[:, a:b, lit] += np.einsum("cwkp,kcwp->wcp", gathered, phases[:, np.arange(a, b) % n_mu][..., lit])
 
     chunks_in_threads(rays_of_thread, range(0, n_rays, chunk), SOLVER_THREADS)
-    hit = np.nonzero(hits)[0]
-    if hit.size:  # direct sunlight reflected where the ray meets the ground
-        t_end = t[hit, -1] + 0.5 * dt[hit, -1]
-        mus_g = np.clip((r0[hit, None] * mus_p[None, :] + t_end[:, None] * cs[hit]) / R, -1.0, 1.0)
-        t_sun_g = st.transmittance(np.zeros_like(mus_g), mus_g, which=1)  # (G, n_p, n_wl)
-        out[:, hit] += np.moveaxis((profile.ground_albedo / np.pi) * t_sun_g * np.maximum(mus_g, 0.0)[..., None]
-                                   * ground_t[hit][:, None, :], -1, 0).astype(f32)
     out *= profile.solar_irradiance.astype(f32)[:, None, None]
     return out  # (n_wl, rays, n_phi * n_mus)
 
@@ -1481,50 +1486,57 @@ class _SphericalTransport:
         source at the probe wavelengths on this transport's azimuths, ``lg`` (n_mus, n_wl)
         the light leaving the ground."""
         n_pr = self.probe.size
-        # source laid out (altitude * n_mu + mu, phi, mu_s, probe)
+        n_nodes = self.n_h * self.n_mu
+        f32 = np.float32
+        # source laid out (probe, altitude * n_mu + mu, phi, mu_s)
         src = j_probe.reshape(n_pr, self.n_mu, self.n_phi, self.n_h, self.n_mus)
         if self.inv_sigma is not None:  # J / sigma_s at the nodes
             src = src * self.inv_sigma.T[:, None, None, :, None]
-        src = np.ascontiguousarray(src.transpose(3, 1, 2, 4, 0)).reshape(self.n_h * self.n_mu, self.n_phi, self.n_mus, n_pr)
-        # with d(log J)/d(mu_s) beside J: (altitude * n_mu + mu, phi, mu_s, 2, probe)
-        src = np.stack([src, _log_slopes(self.mus_nodes, src, axis=2).astype(np.float32)], axis=3)
-        out = np.zeros((self.n_rays, self.n_p, n_pr), dtype=np.float32)
+        src = np.ascontiguousarray(src.transpose(0, 3, 1, 2, 4)).reshape(n_pr, n_nodes, self.n_phi, self.n_mus)
+        out = np.zeros((self.n_rays, self.n_p, n_pr), dtype=f32)
         n_sub = self.n_sub
 
-        # only the sun nodes that some sample reads (``n_read``: the sun is never far above the
-        # corrected nodes along a grid ray)
+        # J and d(log J)/d(mu_s) at the sun nodes that some sample reads (``n_read``: the sun is
+        # never far above the corrected nodes along a grid ray), laid out (J or slope, probe,
+        # node, phi * mu_s): every array below is long in its last axis (with the probe last,
+        # numpy's loops ran over 5 values at a time and the cubic took 2.3x longer)
         n_read = self.n_read
-        flat_src = np.ascontiguousarray(src[:, :, :n_read]).reshape(src.shape[0], -1)  # (.., phi * mu_s * 2 * probe)
+        flat_src = np.stack([src[..., :n_read], _log_slopes(self.mus_nodes, src, axis=3)[..., :n_read].astype(f32)])
+        flat_src = flat_src.reshape(2 * n_pr, n_nodes, self.n_phi * n_read)
+
         def rays_of_thread(own_starts):  # each chunk writes its own rays of ``out``
             # the source at the samples' altitude and zenith cosine, the sum of the four
             # corners' rows weighted, in two work arrays kept from chunk to chunk (gathered
             # whole, (rays, steps, 4 corners, row), they were ~90 MB a chunk, allocated anew)
-            at_hm = np.empty((self.chunk * self.n_steps, flat_src.shape[1]), dtype=np.float32)
-            term = np.empty_like(at_hm)
+            size = 2 * n_pr * self.chunk * self.n_steps * flat_src.shape[2]
+            at_hm, term = np.empty(size, dtype=f32), np.empty(size, dtype=f32)
             for a in own_starts:
                 b = min(self.n_rays, a + self.chunk)
                 c = b - a
-                acc, tmp = at_hm[:c * self.n_steps], term[:c * self.n_steps]
-                for corner in range(4):
-                    np.take(flat_src, self.node[a:b, :, corner].ravel(), axis=0, out=tmp if corner else acc)
+                n_s = c * self.n_steps  # the chunk's samples
+                shape = (2 * n_pr, n_s, flat_src.shape[2])
+                acc, tmp = at_hm[:np.prod(shape)].reshape(shape), term[:np.prod(shape)].reshape(shape)
+                for corner in range(4):  # (mode "clip": the nodes are in range; "raise" copies through a buffer)
+                    np.take(flat_src, self.node[a:b, :, corner].ravel(), axis=1, out=tmp if corner else acc,
+                            mode="clip")
                     if corner:
-                        tmp *= self.node_w[a:b, :, corner].reshape(-1, 1)
+                        tmp *= self.node_w[a:b, :, corner].reshape(1, -1, 1)
                         acc += tmp
                     else:
-                        acc *= self.node_w[a:b, :, 0].reshape(-1, 1)
+                        acc *= self.node_w[a:b, :, 0].reshape(1, -1, 1)
                 mus_t = (self.r0[a:b, None, None] * self.mus_p + self.t[a:b, :, None] * self.cs[a:b, None, :]) \
                     / self.r_t[a:b, :, None]  # (c, s, n_p)
                 i, f = _axis(self.mus_nodes, np.clip(mus_t, -1.0, 1.0))
                 # read along the sun axis at each sample's own sun cosine
-                rows = (np.arange(c * self.n_steps * self.n_phi).reshape(c, self.n_steps, self.n_phi, 1) * n_read
+                rows = (np.arange(n_s * self.n_phi).reshape(c, self.n_steps, self.n_phi, 1) * n_read
                         + i.reshape(c, self.n_steps, self.n_phi, n_sub)).ravel()
-                vals = acc.reshape(-1, 2, n_pr)
-                lo, hi = np.take(vals, rows, axis=0), np.take(vals, rows + 1, axis=0)
+                vals = acc.reshape(2, n_pr, -1)
+                lo, hi = np.take(vals, rows, axis=2, mode="clip"), np.take(vals, rows + 1, axis=2, mode="clip")
                 # in float32, as the source (in float64 the cubic's arrays were twice the memory traffic)
-                dx = (self.mus_nodes[i + 1] - self.mus_nodes[i]).reshape(-1, 1).astype(np.float32)
-                got = _sun_interp_cubic(lo[:, 0], hi[:, 0], lo[:, 1], hi[:, 1], dx, f.reshape(-1, 1).astype(np.float32),
-                                        (self.mus_nodes[i + 1] <= 0.0).reshape(-1, 1)).reshape(c, self.n_steps, self.n_p, n_pr)
-                out[a:b] = np.einsum("csw,cspw->cpw", self.weight[a:b], got)
+                dx = (self.mus_nodes[i + 1] - self.mus_nodes[i]).ravel().astype(f32)
+                got = _sun_interp_cubic(lo[0], hi[0], lo[1], hi[1], dx, f.ravel().astype(f32),
+                                        (self.mus_nodes[i + 1] <= 0.0).ravel())  # (probe, samples * n_p)
+                out[a:b] = np.einsum("csw,wcsp->cpw", self.weight[a:b], got.reshape(n_pr, c, self.n_steps, self.n_p))
 
         chunks_in_threads(rays_of_thread, range(0, self.n_rays, self.chunk), SOLVER_THREADS)
         if self.hits.size:
