@@ -1358,7 +1358,7 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
                 if cols.size == 0:
                     continue
                 if cols.size < n_p:  # every sample of the chunk's rays in the Earth's shadow: exact zeros
-                    lit, mus_t = cols, mus_t[..., cols]
+                    lit, mus_t = cols, np.ascontiguousarray(mus_t[..., cols])  # (indexing leaves the columns outermost)
             m = mus_t.shape[-1]
             # the table interpolated to each sample's altitude: (c * steps * n_x, k)
             tab_h = (tab[ih[a:b]] * (1 - fh[a:b, :, None, None]) + tab[ih[a:b] + 1] * fh[a:b, :, None, None])
