@@ -21,14 +21,16 @@ _blas = {"lock": threading.Lock(), "depth": 0, "limiter": None, "controller": No
 
 @contextlib.contextmanager
 def one_blas_thread():
-    """numpy's BLAS on one thread inside the block (threadpoolctl), the threads it had after.
+    """numpy's BLAS on one thread inside the block (threadpoolctl); its thread count is
+    restored after.
 
     The loops of :func:`in_threads` already keep every core busy; a matrix product in each
     of them could also start BLAS's own threads, which then spin (``sched_yield``) waiting
     for the cores the loops hold: measured with perf on a cold ``final`` 512x256 build, 11 %
     of its CPU time, and 1.5-2.7 s of its 26-29 s wall time on 2 cores. Nested or
     concurrent blocks (two loops from two threads) share one limit: the first sets it,
-    the last one out gives BLAS its threads back."""
+    the last one out gives BLAS its threads back. The limit is the process's: a product on
+    another thread meanwhile (Blender's, beside a background build) also runs on one."""
     with _blas["lock"]:
         if _blas["depth"] == 0:
             if _blas["controller"] is None:  # made on first use: it finds the BLAS libraries loaded then
