@@ -145,3 +145,19 @@ def test_the_ground_light_near_the_horizon_needs_the_ground_split(monkeypatch):
     unsplit = horizon(24, 1) / converged - 1
     assert np.all(np.abs(split) < 0.0015), split
     assert np.all(unsplit > 0.0018), unsplit
+
+
+def test_the_coarse_grid_shares_the_operators(desert):
+    """on_grid: the same term on half the azimuths (what a fresh one there computes), and a
+    refusal for other zenith nodes."""
+    prof, med, grid = desert
+    pd = PeakDiffuse(prof, med, grid)
+    coarse = ms.coarse_azimuth_grid(grid)
+    shared, fresh = pd.on_grid(coarse), PeakDiffuse(prof, med, coarse)
+    assert shared.grid is coarse and shared.terms is pd.terms
+    rng = np.random.default_rng(4)
+    radiance = rng.random((coarse.n_wl, coarse.n_dir, coarse.n_h, coarse.n_mus)).astype(np.float32)
+    assert np.array_equal(shared.source(radiance), fresh.source(radiance))
+    other = ms.build_table_grid(prof, med, n_altitudes=6, n_mu=16, n_phi=4, n_mus=3)
+    with pytest.raises(ValueError, match="same zenith"):
+        pd.on_grid(other)

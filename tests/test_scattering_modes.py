@@ -54,3 +54,36 @@ def test_scattered_source_equals_the_dense_product(n_phi):
     want = sum((pm @ flat).reshape(radiance.shape) * sig.T[:, None, :, None] for pm, (_, sig) in zip(dense, species))
     assert got.dtype == np.float32 and got.shape == radiance.shape
     np.testing.assert_allclose(got, want, rtol=2e-6)
+
+
+def test_kept_arrays_give_the_same_orders():
+    """scattered_source and gathered_radiance into WorkArrays' arrays equal the new-array
+    route bit for bit; gathered_radiance equals M J + G L_g on the ray layout."""
+    prof, med, grid = _setup(6)
+    species = ms.scattering_species(prof, med, grid)
+    rng = np.random.default_rng(5)
+    field = (grid.n_wl, grid.n_dir, grid.n_h, grid.n_mus)
+    radiance = rng.random(field).astype(np.float32)
+    work = ms.WorkArrays()
+    kept = work.get("source", field)
+    got = ms.scattered_source(radiance, species, grid, out=kept)
+    assert got.base is kept.base and np.array_equal(got, ms.scattered_source(radiance, species, grid))
+    n_rays = grid.n_h * grid.n_mu
+    M = rng.random((grid.n_wl, n_rays, n_rays)).astype(np.float32)
+    G = rng.random((grid.n_wl, n_rays)).astype(np.float32)
+    lg = rng.random((grid.n_mus, grid.n_wl)).astype(np.float32)
+    got = ms.gathered_radiance(radiance, lg, M, G, grid, out=work.get("radiance", field))
+    assert np.array_equal(got, ms.gathered_radiance(radiance, lg, M, G, grid))
+    ray = np.matmul(M, ms.to_ray_layout(radiance, grid)).reshape(grid.n_wl, n_rays, grid.n_phi, grid.n_mus)
+    ray += G[:, :, None, None] * lg.T[:, None, None, :]
+    want = ms.to_dir_layout(ray.reshape(grid.n_wl, n_rays, -1), grid)
+    np.testing.assert_allclose(got, want, rtol=1e-6)
+    # the same size keeps the memory; another size replaces it
+    assert work.get("source", field[::-1]).base is kept.base
+    smaller = work.get("source", (grid.n_wl, grid.n_dir // 2, grid.n_h, grid.n_mus))
+    assert smaller.base is not kept.base and smaller.shape == (grid.n_wl, grid.n_dir // 2, grid.n_h, grid.n_mus)
+
+
+def test_abs_sums_per_wavelength():
+    a = np.random.default_rng(2).normal(size=(3, 4, 5, 6)).astype(np.float32)
+    np.testing.assert_allclose(ms.abs_sums(a), np.abs(a.astype(float)).sum(axis=(1, 2, 3)), rtol=1e-6)
