@@ -59,6 +59,34 @@ def test_first_order_radiance_is_the_spherical_single_scattering(rayleigh_only, 
         assert np.all(got[~lit] <= 1e-4 * max(ref.max(), 1e-300))
 
 
+
+def test_first_order_skips_only_dark_columns(rayleigh_only):
+    """The sun nodes dark at every sample of a chunk's rays are left out of the first order
+    (their light is 0): with one ray per chunk more of them are skipped than with all rays
+    in one chunk, and the two must agree, with the columns skipped exactly 0."""
+    prof = rayleigh_only
+    R, top = prof.planet_radius_m, prof.top_altitude_m
+    med = factor_medium(prof)
+    table = SunTransmittance([med.extinction, med.extinction_scaled], R, top, 64, 96, 96)
+    h0 = np.array([0.0, 0.0, 8000.0, 30000.0])
+    mu0 = np.cos(np.radians([30.0, 89.0, 92.0, 97.0]))
+    p = np.stack([np.zeros(4), np.zeros(4), R + h0], axis=1)
+    d = np.stack([np.sqrt(1 - mu0**2), np.zeros(4), mu0], axis=1)
+    t0, t1, hits = atmosphere_segment(p, d, R, R + top)
+    t, dt = march_samples(p, d, t0, t1, 120, R)
+    h = np.clip(altitude_along(p, d, t, R), 0.0, None)
+    ext = med.extinction_scaled.at(h)
+    tau = np.cumsum(ext * dt[..., None], axis=1) - 0.5 * ext * dt[..., None]
+    elevations = np.array([-40.0, -10.0, -4.0, -1.0, 2.0, 20.0])
+    kw = dict(species_sigma_at=[med.rayleigh], species_phase=[prof.rayleigh_phase], r0=R + h0, mu0=mu0, t=t, dt=dt,
+              h=h, trans=np.exp(-tau), hits=hits, ground_t=np.full((4, len(WL)), 0.5),
+              mus_nodes=np.sin(np.radians(elevations)), phi_nodes=np.radians([0.0, 90.0, 180.0]), n_mu=4, R=R)
+    one_ray = _first_order_spherical(table, prof, max_elements=1, **kw)  # (n_wl, rays, n_phi * n_elev)
+    all_rays = _first_order_spherical(table, prof, max_elements=10**9, **kw)
+    np.testing.assert_allclose(one_ray, all_rays, rtol=1e-5, atol=1e-7 * all_rays.max())
+    dark = one_ray.reshape(len(WL), 4, 3, elevations.size)[..., 0]  # 40 degrees under: no sample sees the sun
+    assert np.all(dark == 0.0) and np.all(one_ray[..., elevations.size - 1::elevations.size] > 0.0)
+
 def test_spherical_transport_changes_nothing_with_a_high_sun():
     """With the sun high the sun angle hardly changes along the rays that matter, so the
     spherical transport (first order exact, second corrected) must agree with the
