@@ -84,6 +84,26 @@ def test_kept_arrays_give_the_same_orders():
     assert smaller.base is not kept.base and smaller.shape == (grid.n_wl, grid.n_dir // 2, grid.n_h, grid.n_mus)
 
 
+def test_layouts_follow_the_documented_index_maps():
+    """The dir layout's (dir = i_mu n_phi + i_phi, h, sun) and the ray layout's
+    (ray = i_h n_mu + i_mu, i_phi n_mus + sun), written out index by index: dir_in_ray_order
+    is a view (writes land in the field), to_ray_layout / to_dir_layout invert each other."""
+    _, _, grid = _setup(5)
+    field = np.arange(grid.n_wl * grid.n_dir * grid.n_h * grid.n_mus, dtype=np.float32).reshape(
+        grid.n_wl, grid.n_dir, grid.n_h, grid.n_mus)
+    w, i_mu, i_phi, i_h, s = 2, grid.n_mu - 2, 3, grid.n_h - 1, 1
+    value = field[w, i_mu * grid.n_phi + i_phi, i_h, s]
+    view = ms.dir_in_ray_order(field, grid)
+    assert view.shape == (grid.n_wl, grid.n_h, grid.n_mu, grid.n_phi, grid.n_mus)
+    assert view[w, i_h, i_mu, i_phi, s] == value
+    assert ms.dir_in_ray_order(field[w], grid)[i_h, i_mu, i_phi, s] == value
+    ray = ms.to_ray_layout(field, grid)
+    assert ray[w, i_h * grid.n_mu + i_mu, i_phi * grid.n_mus + s] == value
+    assert np.array_equal(ms.to_dir_layout(ray, grid), field)
+    view[w, i_h, i_mu, i_phi, s] = -1.0
+    assert field[w, i_mu * grid.n_phi + i_phi, i_h, s] == -1.0
+
+
 def test_abs_sums_per_wavelength():
     a = np.random.default_rng(2).normal(size=(3, 4, 5, 6)).astype(np.float32)
     np.testing.assert_allclose(ms.abs_sums(a), np.abs(a.astype(float)).sum(axis=(1, 2, 3)), rtol=1e-6)

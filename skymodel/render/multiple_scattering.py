@@ -698,16 +698,27 @@ def ground_transmittance_vector(rays: GridRays) -> np.ndarray:
 # "ray" layout (n_wl, n_h * n_mu, n_phi * n_mus) with ray = i_h * n_mu + i_mu: what transport reads.
 
 
+def dir_in_ray_order(a: np.ndarray, grid: TableGrid) -> np.ndarray:
+    """An array in the dir layout, (..., n_dir, n_h, n_mus), viewed with its axes in the ray
+    layout's order: (..., n_h, n_mu, n_phi, n_mus), a strided view of the same memory
+    (writes through it land in ``a``)."""
+    assert a.shape[-3:] == (grid.n_dir, grid.n_h, grid.n_mus), a.shape
+    lead = a.shape[:-3]
+    k = len(lead)
+    v = a.reshape(*lead, grid.n_mu, grid.n_phi, grid.n_h, grid.n_mus)
+    return v.transpose(*range(k), k + 2, k, k + 1, k + 3)
+
+
 def to_ray_layout(a: np.ndarray, grid: TableGrid) -> np.ndarray:
-    """A field in the dir layout, laid out by grid ray: (n_wl, n_h * n_mu, n_phi * n_mus)."""
-    a = a.reshape(grid.n_wl, grid.n_mu, grid.n_phi, grid.n_h, grid.n_mus).transpose(0, 3, 1, 2, 4)
-    return a.reshape(grid.n_wl, grid.n_h * grid.n_mu, grid.n_phi * grid.n_mus)
+    """A field in the dir layout, laid out by grid ray: (n_wl, n_h * n_mu, n_phi * n_mus), a copy."""
+    return dir_in_ray_order(a, grid).reshape(grid.n_wl, grid.n_h * grid.n_mu, grid.n_phi * grid.n_mus)
 
 
 def to_dir_layout(a: np.ndarray, grid: TableGrid) -> np.ndarray:
-    """A field in the ray layout, laid out by direction: (n_wl, n_dir, n_h, n_mus)."""
-    a = a.reshape(grid.n_wl, grid.n_h, grid.n_mu, grid.n_phi, grid.n_mus).transpose(0, 2, 3, 1, 4)
-    return a.reshape(grid.n_wl, grid.n_dir, grid.n_h, grid.n_mus)
+    """A field in the ray layout, laid out by direction: (n_wl, n_dir, n_h, n_mus), a copy."""
+    out = np.empty((grid.n_wl, grid.n_dir, grid.n_h, grid.n_mus), dtype=a.dtype)
+    np.copyto(dir_in_ray_order(out, grid), a.reshape(grid.n_wl, grid.n_h, grid.n_mu, grid.n_phi, grid.n_mus))
+    return out
 
 
 def coarse_azimuth_grid(grid: TableGrid) -> TableGrid:
@@ -942,13 +953,12 @@ def gathered_radiance(source: np.ndarray, ground_radiance: np.ndarray, M: np.nda
     out = np.empty(dir_shape, dtype=dtype) if out is None else _as_field(out, dir_shape, dtype)
     src_ray = np.empty((n_rays, n_phi * n_mus), dtype=dtype)
     l_ray = np.empty_like(src_ray)
+    ray_shape = (n_h, n_mu, n_phi, n_mus)
     for w in range(n_wl):
-        # dir layout (n_mu, phi, n_h, n_mus) <-> ray layout (n_h, n_mu, phi, n_mus)
-        np.copyto(src_ray.reshape(n_h, n_mu, n_phi, n_mus),
-                  source[w].reshape(n_mu, n_phi, n_h, n_mus).transpose(2, 0, 1, 3))
+        np.copyto(src_ray.reshape(ray_shape), dir_in_ray_order(source[w], grid))
         np.matmul(M[w], src_ray, out=l_ray)
         l_ray.reshape(n_rays, n_phi, n_mus)[...] += G[w, :, None, None] * ground_radiance[:, w]
-        np.copyto(out[w].reshape(n_mu, n_phi, n_h, n_mus), l_ray.reshape(n_h, n_mu, n_phi, n_mus).transpose(1, 2, 0, 3))
+        np.copyto(dir_in_ray_order(out[w], grid), l_ray.reshape(ray_shape))
     return out
 
 
@@ -1268,6 +1278,18 @@ def _ray_sun_cosine(mu0, phi_nodes, mus):
             + sin0[:, None, None] * np.cos(phi_nodes)[None, :, None] * sin_s[None, None, :]).reshape(mu0.size, -1)
 
 
+def _sun_cosine_along(r0, mus_p, t, cs, r):
+    """The sun's zenith cosine at distance ``t`` (m) along straight grid rays,
+    mu_s(t) = (r0 mu_s0 + t d.s) / r(t): ``r0`` (rays,) the start radius (m), ``mus_p``
+    (n_p,) mu_s0 at the start for every (azimuth, sun node) pair, ``cs`` (rays, n_p) d.s the
+    cosine between ray and sun, ``r`` the radius reached (m). Samples along each ray: ``t``
+    and ``r`` (rays, steps) -> (rays, steps, n_p); one point per ray: ``t`` (rays,) and a
+    scalar ``r`` -> (rays, n_p)."""
+    if t.ndim == 2:
+        return (r0[:, None, None] * mus_p + t[:, :, None] * cs[:, None, :]) / r[:, :, None]
+    return (r0[:, None] * mus_p + t[:, None] * cs) / r
+
+
 def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phase, r0, mu0, t, dt, h, trans,
                            hits, ground_t, mus_nodes, phi_nodes, n_mu, R, max_elements: int = 8_000_000):
     """Radiance of light scattered once, arriving at every grid node, with the true
@@ -1338,7 +1360,7 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
         """Direct sunlight reflected where the ``rays`` (indices, all meeting the ground) end:
         (n_wl, rays, n_p) float32, at the ground point's own sun cosine."""
         t_end = t[rays, -1] + 0.5 * dt[rays, -1]
-        mus_g = np.clip((r0[rays, None] * mus_p[None, :] + t_end[:, None] * cs[rays]) / R, -1.0, 1.0)
+        mus_g = np.clip(_sun_cosine_along(r0[rays], mus_p, t_end, cs[rays], R), -1.0, 1.0)
         t_sun_g = st.transmittance(np.zeros_like(mus_g), mus_g, which=1)  # (G, n_p, n_wl)
         return np.moveaxis((profile.ground_albedo / np.pi) * t_sun_g * np.maximum(mus_g, 0.0)[..., None]
                            * ground_t[rays][:, None, :], -1, 0).astype(f32)
@@ -1351,7 +1373,7 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
             hit = a + np.flatnonzero(hits[a:b])
             if hit.size:
                 out[:, hit] += ground_light(hit)
-            mus_t = (r0[a:b, None, None] * mus_p + t[a:b, :, None] * cs[a:b, None, :]) / r_t[a:b, :, None]  # (c, steps, n_p)
+            mus_t = _sun_cosine_along(r0[a:b], mus_p, t[a:b], cs[a:b], r_t[a:b])  # (c, steps, n_p)
             lit = slice(None)  # the (azimuth, sun node) columns computed: all, or those lit somewhere
             if st.earth_shadow:
                 lo, hi = mu_lo[a:b, :, None], mu_hi[a:b, :, None]
@@ -1472,12 +1494,12 @@ class _SphericalTransport:
                          // max(1, 2 * n_steps * self.n_phi * self.n_mus * self.probe.size))
         # the highest sun node any sample reads (its cell's upper node), + 1
         # (the node index grows with mu_s: that of the largest mu_s of any sample)
-        top = max(float(((r0[a:a + 64, None, None] * self.mus_p + t[a:a + 64, :, None] * self.cs[a:a + 64, None, :])
-                         / self.r_t[a:a + 64, :, None]).max()) for a in range(0, n_rays, 64))
+        top = max(float(_sun_cosine_along(r0[a:a + 64], self.mus_p, t[a:a + 64], self.cs[a:a + 64],
+                                          self.r_t[a:a + 64]).max()) for a in range(0, n_rays, 64))
         self.n_read = int(_axis(mus_nodes, np.clip(np.array([top]), -1.0, 1.0))[0][0]) + 2
         self.hits = np.nonzero(hits)[0]
         t_end = t[self.hits, -1] + 0.5 * dt[self.hits, -1]
-        mus_g = (r0[self.hits, None] * self.mus_p[None, :] + t_end[:, None] * self.cs[self.hits]) / R
+        mus_g = _sun_cosine_along(r0[self.hits], self.mus_p, t_end, self.cs[self.hits], R)
         self.ground_sun = _axis(mus_nodes, np.clip(mus_g, -1.0, 1.0))  # (G, n_p) node index and fraction
         self.ground_t = ground_t[self.hits][:, self.probe].astype(f32)  # (G, n_probe)
 
@@ -1525,8 +1547,8 @@ class _SphericalTransport:
                         acc += tmp
                     else:
                         acc *= self.node_w[a:b, :, 0].reshape(1, -1, 1)
-                mus_t = (self.r0[a:b, None, None] * self.mus_p + self.t[a:b, :, None] * self.cs[a:b, None, :]) \
-                    / self.r_t[a:b, :, None]  # (c, s, n_p)
+                mus_t = _sun_cosine_along(self.r0[a:b], self.mus_p, self.t[a:b], self.cs[a:b],
+                                          self.r_t[a:b])  # (c, s, n_p)
                 i, f = _axis(self.mus_nodes, np.clip(mus_t, -1.0, 1.0))
                 # read along the sun axis at each sample's own sun cosine
                 rows = (np.arange(n_s * self.n_phi).reshape(c, self.n_steps, self.n_phi, 1) * n_read
