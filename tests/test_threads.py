@@ -1,5 +1,10 @@
 """skymodel.render.threads: the loops on threads, and numpy's BLAS held to one thread in them."""
 
+import json
+import os
+import subprocess
+import sys
+import textwrap
 import threading
 
 import numpy as np
@@ -40,6 +45,7 @@ class FakeController:
 
     def __init__(self):
         self.threads = 2
+        self.lib_controllers = []
 
     def limit(self, limits, user_api):
         assert user_api == "blas"
@@ -59,6 +65,7 @@ def test_concurrent_loops_share_one_limit(monkeypatch):
     # reports when its count is set from several threads is its own business)
     fake = FakeController()
     monkeypatch.setitem(threads._blas, "controller", fake)
+    monkeypatch.setitem(threads._blas, "modules", len(sys.modules))
     first_in, first_out, second_in = threading.Event(), threading.Event(), threading.Event()
     seen = []
 
@@ -87,3 +94,38 @@ def test_limit_restored_after_an_error(two_blas_threads):
             assert set(blas_threads()) == {1}
             raise RuntimeError("in the loop")
     assert set(blas_threads()) == {2}
+
+
+def test_limit_takes_on_a_background_thread_after_a_build_on_the_main_thread():
+    """The add-on builds on a background thread, scripts and the CLI on the main one; OpenBLAS
+    ignores a count set from another thread once the main thread has set one. In a fresh
+    process (that state is the process's): a loop on the main thread, then one on a
+    background thread, each sees every BLAS library on one thread (scipy's own OpenBLAS,
+    loaded after the first loop, too), and both get their counts back after."""
+    script = textwrap.dedent("""
+        import json, threading
+        import numpy as np
+        from threadpoolctl import threadpool_info
+        from skymodel.render.threads import in_threads
+
+        def counts():
+            return sorted(lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas")
+
+        before = counts()
+        seen = {"main": in_threads(lambda i: counts(), range(2), 2)}
+        import scipy.linalg  # noqa: F401  (its own OpenBLAS)
+        before_bg = counts()
+        t = threading.Thread(target=lambda: seen.update(background=in_threads(lambda i: counts(), range(2), 2)))
+        t.start()
+        t.join()
+        print(json.dumps(dict(seen, before=before, before_bg=before_bg, after=counts())))
+    """)
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="2", OMP_NUM_THREADS="2")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120)
+    assert out.returncode == 0, out.stderr
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    if not r["before"]:
+        pytest.skip("no BLAS library that threadpoolctl controls")
+    assert all(set(c) == {1} for c in r["main"]), r
+    assert all(set(c) == {1} and len(c) == len(r["before_bg"]) for c in r["background"]), r
+    assert r["after"] == r["before_bg"] and set(r["before_bg"]) == {2}, r
