@@ -93,10 +93,10 @@ def test_layouts_follow_the_documented_index_maps():
         grid.n_wl, grid.n_dir, grid.n_h, grid.n_mus)
     w, i_mu, i_phi, i_h, s = 2, grid.n_mu - 2, 3, grid.n_h - 1, 1
     value = field[w, i_mu * grid.n_phi + i_phi, i_h, s]
-    view = ms.dir_in_ray_order(field, grid)
+    view = ms.dir_in_ray_order(field, grid.n_mu, grid.n_phi)
     assert view.shape == (grid.n_wl, grid.n_h, grid.n_mu, grid.n_phi, grid.n_mus)
     assert view[w, i_h, i_mu, i_phi, s] == value
-    assert ms.dir_in_ray_order(field[w], grid)[i_h, i_mu, i_phi, s] == value
+    assert ms.dir_in_ray_order(field[w], grid.n_mu, grid.n_phi)[i_h, i_mu, i_phi, s] == value
     ray = ms.to_ray_layout(field, grid)
     assert ray[w, i_h * grid.n_mu + i_mu, i_phi * grid.n_mus + s] == value
     assert np.array_equal(ms.to_dir_layout(ray, grid), field)

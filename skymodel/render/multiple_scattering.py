@@ -698,26 +698,27 @@ def ground_transmittance_vector(rays: GridRays) -> np.ndarray:
 # "ray" layout (n_wl, n_h * n_mu, n_phi * n_mus) with ray = i_h * n_mu + i_mu: what transport reads.
 
 
-def dir_in_ray_order(a: np.ndarray, grid: TableGrid) -> np.ndarray:
-    """An array in the dir layout, (..., n_dir, n_h, n_mus), viewed with its axes in the ray
-    layout's order: (..., n_h, n_mu, n_phi, n_mus), a strided view of the same memory
-    (writes through it land in ``a``)."""
-    assert a.shape[-3:] == (grid.n_dir, grid.n_h, grid.n_mus), a.shape
-    lead = a.shape[:-3]
-    k = len(lead)
-    v = a.reshape(*lead, grid.n_mu, grid.n_phi, grid.n_h, grid.n_mus)
-    return v.transpose(*range(k), k + 2, k, k + 1, k + 3)
+def dir_in_ray_order(a: np.ndarray, n_mu: int, n_phi: int) -> np.ndarray:
+    """An array in the dir layout, (..., n_mu * n_phi, n_h, k) with direction
+    i_mu * n_phi + i_phi (k: sun nodes, or any trailing axis), viewed with its axes in the ray
+    layout's order: (..., n_h, n_mu, n_phi, k), a strided view of the same memory (writes
+    through it land in ``a``)."""
+    *lead, n_dir, n_h, k = a.shape
+    assert n_dir == n_mu * n_phi, (a.shape, n_mu, n_phi)
+    j = len(lead)
+    return a.reshape(*lead, n_mu, n_phi, n_h, k).transpose(*range(j), j + 2, j, j + 1, j + 3)
 
 
 def to_ray_layout(a: np.ndarray, grid: TableGrid) -> np.ndarray:
     """A field in the dir layout, laid out by grid ray: (n_wl, n_h * n_mu, n_phi * n_mus), a copy."""
-    return dir_in_ray_order(a, grid).reshape(grid.n_wl, grid.n_h * grid.n_mu, grid.n_phi * grid.n_mus)
+    return dir_in_ray_order(a, grid.n_mu, grid.n_phi).reshape(grid.n_wl, grid.n_h * grid.n_mu, grid.n_phi * grid.n_mus)
 
 
 def to_dir_layout(a: np.ndarray, grid: TableGrid) -> np.ndarray:
     """A field in the ray layout, laid out by direction: (n_wl, n_dir, n_h, n_mus), a copy."""
     out = np.empty((grid.n_wl, grid.n_dir, grid.n_h, grid.n_mus), dtype=a.dtype)
-    np.copyto(dir_in_ray_order(out, grid), a.reshape(grid.n_wl, grid.n_h, grid.n_mu, grid.n_phi, grid.n_mus))
+    np.copyto(dir_in_ray_order(out, grid.n_mu, grid.n_phi),
+              a.reshape(grid.n_wl, grid.n_h, grid.n_mu, grid.n_phi, grid.n_mus))
     return out
 
 
@@ -955,10 +956,10 @@ def gathered_radiance(source: np.ndarray, ground_radiance: np.ndarray, M: np.nda
     l_ray = np.empty_like(src_ray)
     ray_shape = (n_h, n_mu, n_phi, n_mus)
     for w in range(n_wl):
-        np.copyto(src_ray.reshape(ray_shape), dir_in_ray_order(source[w], grid))
+        np.copyto(src_ray.reshape(ray_shape), dir_in_ray_order(source[w], n_mu, n_phi))
         np.matmul(M[w], src_ray, out=l_ray)
         l_ray.reshape(n_rays, n_phi, n_mus)[...] += G[w, :, None, None] * ground_radiance[:, w]
-        np.copyto(dir_in_ray_order(out[w], grid), l_ray.reshape(ray_shape))
+        np.copyto(dir_in_ray_order(out[w], n_mu, n_phi), l_ray.reshape(ray_shape))
     return out
 
 
@@ -1512,10 +1513,11 @@ class _SphericalTransport:
         n_nodes = self.n_h * self.n_mu
         f32 = np.float32
         # source laid out (probe, altitude * n_mu + mu, phi, mu_s)
-        src = j_probe.reshape(n_pr, self.n_mu, self.n_phi, self.n_h, self.n_mus)
+        src = j_probe
         if self.inv_sigma is not None:  # J / sigma_s at the nodes
-            src = src * self.inv_sigma.T[:, None, None, :, None]
-        src = np.ascontiguousarray(src.transpose(0, 3, 1, 2, 4)).reshape(n_pr, n_nodes, self.n_phi, self.n_mus)
+            src = src * self.inv_sigma.T[:, None, :, None]
+        src = np.ascontiguousarray(dir_in_ray_order(src, self.n_mu, self.n_phi)).reshape(
+            n_pr, n_nodes, self.n_phi, self.n_mus)
         out = np.zeros((self.n_rays, self.n_p, n_pr), dtype=f32)
         n_sub = self.n_sub
 
@@ -1582,12 +1584,13 @@ class _SphericalTransport:
         if self.coarse:
             j_probe, col = (azimuth_pair_mean(x, self.n_mu, self.fine_n_phi) for x in (j_probe, col))
         sph = self.transport(j_probe, lg)  # (P, rays, n_phi, n_sub)
-        col = col.reshape(self.probe.size, self.n_mu, self.n_phi, self.n_h, self.n_sub)
-        col = col.transpose(0, 3, 1, 2, 4).reshape(sph.shape)
+        col = dir_in_ray_order(col, self.n_mu, self.n_phi).reshape(sph.shape)
         r = np.where(col > 0.0, sph / np.where(col > 0.0, col, 1.0), 1.0)  # (P, rays, n_phi, n_sub)
         if self.coarse:  # back on the solver's azimuths (at the probe wavelengths: n_wl / P times less work)
             r = azimuths_to_fine(r, axis=2)
         if self.to_all is not None:
             r = np.einsum("p...,pw->w...", r.astype(np.float32), self.to_all)
-        r = r.reshape(n_wl, self.n_h, self.n_mu, self.fine_n_phi, self.n_sub).transpose(0, 2, 3, 1, 4)
-        return np.ascontiguousarray(r, dtype=np.float32).reshape(n_wl, self.n_mu * self.fine_n_phi, self.n_h, self.n_sub)
+        factor = np.empty((n_wl, self.n_mu * self.fine_n_phi, self.n_h, self.n_sub), dtype=np.float32)
+        np.copyto(dir_in_ray_order(factor, self.n_mu, self.fine_n_phi),
+                  r.reshape(n_wl, self.n_h, self.n_mu, self.fine_n_phi, self.n_sub))
+        return factor
