@@ -311,7 +311,7 @@ def split_batches(batches, workers, seed, seconds_per_path=None, chunk_s=CHUNK_S
     return tasks
 
 
-def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers=1, seed_from=1):
+def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers=1, seed_from=1, min_top_up=0.1):
     """Trace ``scene`` until every direction's relative standard error is ``target_se`` (or
     it has ``max_paths`` paths, or ``budget_s`` wall-clock seconds have passed: checked after
     every chunk; with workers the chunks still running then are dropped), saving after
@@ -321,7 +321,9 @@ def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers
     single-threaded numpy); the run's
     ``seconds`` counts the processes' tracing time (CPU-seconds), its plan the wall-clock.
     Seeds start at ``seed_from`` or after the run's last, whichever is larger: a run traced
-    elsewhere from other seeds can be pooled with this one (:func:`pool_runs`)."""
+    elsewhere from other seeds can be pooled with this one (:func:`pool_runs`). A direction is
+    traced again only when it needs more than ``min_top_up`` times the paths it has (rounds
+    of a few paths cost more in overhead than they buy; lower it to clear the last ones)."""
     log = log or (lambda line: print(line, flush=True))
     prof, mc = scene.load_mc()
     nd, nw = scene.dirs.shape[0], prof.n_wavelengths
@@ -356,7 +358,7 @@ def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers
             rel = mc["se"] / mc["mean"]
             need = paths_for_noise(rel * np.sqrt(mc["n"])[:, None], 1, target_se, min_paths=0, max_paths=max_paths)
             more = need - mc["n"]
-            todo = more > 0.1 * mc["n"]
+            todo = more > min_top_up * mc["n"]
             if not np.any(todo) or time.perf_counter() - t0 > budget_s:
                 break
             left = (budget_s - (time.perf_counter() - t0)) * max(1, workers)
@@ -617,6 +619,8 @@ def main(argv=None):
                     "at the same time takes seeds far from this one's, to be pooled with it)")
     ap.add_argument("--runs", default="", help="pool: comma list of run files (.npz) of the one scene given, "
                     "traced apart from other seeds, to pool into its cached run")
+    ap.add_argument("--min-top-up", type=float, default=0.1, help="mc: trace a direction again only when it "
+                    "needs more than this share of the paths it has (default 0.1)")
     ap.add_argument("--budget-min", type=float, default=60.0, help="MC minutes per scene, at most (then stop)")
     ap.add_argument("--qualities", default=",".join(QUALITY_NAMES))
     ap.add_argument("--write-docs", action="store_true", help="write docs/accuracy.md's section and its plot")
@@ -637,7 +641,7 @@ def main(argv=None):
         for sc in scenes:
             t = time.perf_counter()
             _, mc = run_mc(sc, a.target_se, a.max_paths, a.pilot_paths, 60.0 * a.budget_min, workers=a.workers,
-                           seed_from=a.seed_from)
+                           seed_from=a.seed_from, min_top_up=a.min_top_up)
             print(f"{sc.name}: {time.perf_counter() - t:.0f} s; {run_summary(mc)}", flush=True)
     elif a.what == "pool":
         if len(scenes) != 1 or not a.runs:
