@@ -33,6 +33,7 @@ import math
 import os
 import secrets
 import struct
+import threading
 import zlib
 from collections.abc import Mapping
 
@@ -227,13 +228,15 @@ class _ExrValueCheck:
         self.dtype, self.half = np.dtype(dtype), bool(half)
         self.nonfinite = 0
         self.max_abs = 0.0
+        self._lock = threading.Lock()  # bands may be added from several threads
 
     def add(self, block):
         fin = np.isfinite(block)
-        if not fin.all():
-            self.nonfinite += int((~fin).sum())
-        elif block.size and self.nonfinite == 0:
-            self.max_abs = max(self.max_abs, float(np.abs(block).max()))
+        bad = 0 if fin.all() else int((~fin).sum())
+        top = float(np.abs(block).max()) if block.size and not bad else 0.0
+        with self._lock:
+            self.nonfinite += bad
+            self.max_abs = max(self.max_abs, top)
 
     def raise_if_bad(self):
         if self.nonfinite:
@@ -776,17 +779,21 @@ def save_outputs(out=None, png=None, spectral=None, *, radiance=None, wavelength
         check = _ExrValueCheck(np.float64, half)
     if "png" in paths:
         Y = np.empty((H, W))
-        bad_png = 0
-    for r0 in starts:
+    def band(r0):
+        """One band of rows into the EXR's pixels and the luminance; its non-finite PNG pixels."""
         x, rgb709 = colour(r0)
         if exr is not None:
             img = x if space == "xyz" else rgb709 if space == "rec709" else xyz_to_rgb(x, space)
             check.add(img)
             with np.errstate(over="ignore"):  # out of range: refused below, before any file
                 exr[r0:r0 + rows] = img
-        if Y is not None:
-            bad_png += int((valid[r0:r0 + rows] & ~np.all(np.isfinite(rgb709), axis=-1)).sum())
-            Y[r0:r0 + rows] = luminance_rec709(rgb709)
+        if Y is None:
+            return 0
+        Y[r0:r0 + rows] = luminance_rec709(rgb709)
+        return int((valid[r0:r0 + rows] & ~np.all(np.isfinite(rgb709), axis=-1)).sum())
+
+    # the bands on the solver's threads (each writes its own rows; numpy releases the GIL)
+    bad_png = sum(in_threads(band, starts, SOLVER_THREADS))
     if exr is not None:
         check.raise_if_bad()
         if space == "xyz":
@@ -804,8 +811,11 @@ def save_outputs(out=None, png=None, spectral=None, *, radiance=None, wavelength
         scale = TONEMAP_KEY / avg * 2.0**ev
         Y = None
         rgb8 = np.empty((H, W, 3), dtype=np.uint8)
-        for r0 in starts:
+
+        def tone(r0):
             rgb8[r0:r0 + rows] = _tone_curve(colour(r0)[1], valid[r0:r0 + rows], scale, TONEMAP_WHITE)
+
+        in_threads(tone, starts, SOLVER_THREADS)
         jobs.append(_prepare_png(paths["png"], rgb8, {"Software": "skymodel"}, parameter="png"))
     if "spectral" in paths:
         jobs.append(_prepare_npz(paths["spectral"], rad, wl, directions, valid, meta, parameter="spectral"))
