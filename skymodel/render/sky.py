@@ -21,6 +21,7 @@ from skymodel.render.cameras import Camera
 from skymodel.render.marcher import SkyMarcher
 from skymodel.render.quality import QUALITIES, QUALITY, quality_settings
 from skymodel.render.sun_transmittance import SUN_ANGULAR_RADIUS_RAD
+from skymodel.render.threads import SOLVER_THREADS, in_threads
 
 # The quality presets live in skymodel.render.quality (re-exported here for older callers).
 __all__ = ["QUALITY", "QUALITIES", "quality_settings", "SkyImage", "add_sun_disc", "render_sky",
@@ -342,8 +343,7 @@ def _pixels(marcher, dirs, valid, reduction, n_channels: int, band_pixels, metho
         disc_at = dict(zip(np.nonzero(disc[0].ravel())[0].tolist(), red.linear(disc[1])))
     t_start = time.perf_counter()
     table = SkyViewTable(marcher, red) if _use_table(marcher, valid, method) else None
-    bands = 0
-    for start in range(0, total, max(band, 1)):
+    def one_band(start):  # writes its own pixels of ``out``
         stop = min(total, start + band)
         r0 = int(np.searchsorted(before, start, side="right")) - 1  # the rows holding valid pixels start..stop-1
         r1 = int(np.searchsorted(before, stop, side="left"))
@@ -361,7 +361,14 @@ def _pixels(marcher, dirs, valid, reduction, n_channels: int, band_pixels, metho
             for k in hit:
                 part[k] = part[k] + disc_at[int(idx[k])]
         out[idx] = red.final(part).reshape(idx.size, -1)
-        bands += 1
+
+    starts = range(0, total, max(band, 1))
+    if table is not None:  # the table's look-ups on the solver's threads (numpy releases the GIL)
+        in_threads(one_band, starts, SOLVER_THREADS)
+    else:  # marching runs its own threads
+        for start in starts:
+            one_band(start)
+    bands = len(starts)
     info = {"orders": marcher.field.orders, "order_contributions": list(marcher.field.order_contributions),
             "timings": dict(marcher.timings, directions_s=time.perf_counter() - t_start),
             "settings": marcher.settings, "method": "table" if table is not None else "direct"}

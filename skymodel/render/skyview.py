@@ -52,6 +52,7 @@ toward the horizon, rendered once per frame and sampled per pixel).
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass
 
@@ -225,6 +226,7 @@ class SkyViewTable:
         self.cap_below = below_d.reshape(gg.shape)
         self.timings = {"cap_s": time.perf_counter() - t0, "cap_nodes": int(d.shape[0])}
         self.exact_pixels = 0
+        self._count_lock = threading.Lock()
 
     def _gamma(self, u):
         """Angle from the sun [rad] of the cap's radial coordinate u in [0, 1]."""
@@ -334,5 +336,6 @@ class SkyViewTable:
             exact = idx[~same]  # next to the sun, the horizon, or with nodes across the horizon
             if exact.size:
                 out[exact] = self._march(d[exact])
-                self.exact_pixels += int(exact.size)
+                with self._count_lock:  # look-ups may run on several threads
+                    self.exact_pixels += int(exact.size)
         return out
