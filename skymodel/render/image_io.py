@@ -779,6 +779,7 @@ def save_outputs(out=None, png=None, spectral=None, *, radiance=None, wavelength
         check = _ExrValueCheck(np.float64, half)
     if "png" in paths:
         Y = np.empty((H, W))
+
     def band(r0):
         """One band of rows into the EXR's pixels and the luminance; its non-finite PNG pixels."""
         x, rgb709 = colour(r0)

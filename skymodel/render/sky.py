@@ -343,6 +343,7 @@ def _pixels(marcher, dirs, valid, reduction, n_channels: int, band_pixels, metho
         disc_at = dict(zip(np.nonzero(disc[0].ravel())[0].tolist(), red.linear(disc[1])))
     t_start = time.perf_counter()
     table = SkyViewTable(marcher, red) if _use_table(marcher, valid, method) else None
+
     def one_band(start):  # writes its own pixels of ``out``
         stop = min(total, start + band)
         r0 = int(np.searchsorted(before, start, side="right")) - 1  # the rows holding valid pixels start..stop-1
