@@ -59,7 +59,6 @@ def test_first_order_radiance_is_the_spherical_single_scattering(rayleigh_only, 
         assert np.all(got[~lit] <= 1e-4 * max(ref.max(), 1e-300))
 
 
-
 def test_first_order_skips_only_dark_columns(rayleigh_only):
     """The sun nodes dark at every sample of a chunk's rays are left out of the first order
     (their light is 0): with one ray per chunk more of them are skipped than with all rays
@@ -86,6 +85,7 @@ def test_first_order_skips_only_dark_columns(rayleigh_only):
     np.testing.assert_allclose(one_ray, all_rays, rtol=1e-5, atol=1e-7 * all_rays.max())
     dark = one_ray.reshape(len(WL), 4, 3, elevations.size)[..., 0]  # 40 degrees under: no sample sees the sun
     assert np.all(dark == 0.0) and np.all(one_ray[..., elevations.size - 1::elevations.size] > 0.0)
+
 
 def test_spherical_transport_changes_nothing_with_a_high_sun():
     """With the sun high the sun angle hardly changes along the rays that matter, so the
