@@ -296,7 +296,7 @@ def _flat_aerosol(aod550):
 def _global_horizontal(m):
     """Global (direct + diffuse) irradiance on the horizontal ground, W m^-2 nm^-1."""
     mus = m.sun[2]
-    diffuse = (m.field.ground_irradiance_at(np.array([mus])) @ m.to_full)[0] * m.profile.solar_irradiance
+    diffuse = m.to_full(m.field.ground_irradiance_at(np.array([mus])))[0] * m.profile.solar_irradiance
     return m.direct_sun_irradiance() * mus + diffuse
 
 
@@ -475,14 +475,12 @@ def test_single_wavelength_and_2nm_grids():
     # smooth from one 2 nm step to the next: no spikes (relative second differences)
     sg = fine.single + fine.ground
     assert np.max(np.abs(np.diff(sg / sg.mean(axis=1, keepdims=True), 2, axis=1))) < 1e-3
-    # multiple scattering is linear between the solver's wavelengths: kinks only there.
-    # ``multiple`` also carries the delta-M bookkeeping (first scattering through the scaled
-    # extinction less true single scattering), computed per wavelength and smooth: its
-    # curvature is <= 1.5e-5 of the mean here, the kinks at the solver's nodes >= 5.6e-5
+    # multiple scattering is carried from the solver's wavelengths (100 nm apart here) by the
+    # log-ozone map (skymodel.render.solver_spectrum): smooth too, its curvature the ozone
+    # band's and the model's (largest 1.2e-3 of the mean, at the node 680 nm and at the
+    # grid's end), no spikes
     ms = fine.multiple / fine.multiple.mean(axis=1, keepdims=True)
-    kink = np.abs(np.diff(ms, 2, axis=1)) > 3e-5
-    nodes = np.isin(wl[1:-1], [480.0, 580.0, 680.0])
-    assert not np.any(kink[:, ~nodes])
+    assert np.max(np.abs(np.diff(ms, 2, axis=1))) < 2e-3
 
 
 # --------------------------------------------------------------------------------------

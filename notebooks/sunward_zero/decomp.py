@@ -18,7 +18,7 @@ def ag(self, *a, **k):
 SkyMarcher._aureole_gather = ag
 orig_g = SkyMarcher._gather_ms
 def gm(self, rings, D):
-    out = orig_g(self, rings, D); rec.setdefault("ms", []).append((out @ self.to_full) * self.profile.solar_irradiance); return out
+    out = orig_g(self, rings, D); rec.setdefault("ms", []).append(self.to_full(out) * self.profile.solar_irradiance); return out
 SkyMarcher._gather_ms = gm
 norm = np.asarray(prof.solar_irradiance)[idx]
 for i in keep:

@@ -69,6 +69,7 @@ from skymodel.render.medium import (delta_m_cone_deg, evaluate_many, factor_medi
 from skymodel.render.multiple_scattering import MultipleScatteringField, solve_multiple_scattering
 from skymodel.render.peak_paths import add_peak_paths
 from skymodel.render.rays import altitude_along, atmosphere_segment, sun_direction
+from skymodel.render.solver_spectrum import SolverSpectrumMap
 from skymodel.render.sun_transmittance import SunTransmittance
 from skymodel.render.threads import SOLVER_THREADS
 from skymodel.render.threads import in_threads as _in_threads
@@ -258,7 +259,7 @@ class SkySolution:
     medium_ms: object
     sun_table: SunTransmittance
     field: MultipleScatteringField
-    to_full: np.ndarray
+    to_full: SolverSpectrumMap  # the solver's spectra -> the profile's wavelengths
     aureole: tuple | None
     timings: dict
 
@@ -295,7 +296,7 @@ def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> 
         source_by_scattering=s.source_by_scattering, mu_horizon_deg=s.table_mu_horizon_deg,
         mu_horizon_nodes=s.table_mu_horizon_nodes, spherical_coarse_phi=s.spherical_coarse_phi,
         coarse_phi_from_order=s.coarse_phi_from_order, progress=progress)
-    to_full = linear_interp_matrix(wl_ms, profile.wavelengths_nm)
+    to_full = SolverSpectrumMap.for_profile(wl_ms, profile)
     aureole = (peak_aureole_table(profile, medium, cone, top)
                if (s.peak_aureole and ms_field.orders > 1) else None)
     timings["multiple_scattering_s"] = time.perf_counter() - t1
@@ -734,14 +735,14 @@ class SkyMarcher:
                 # the true extinction goes with ``multiple`` as for the sky
                 t_ground_s = np.exp(-step_tau_s[gi].sum(axis=1))[:, None, :]
                 e_dir_s = e_sun * t_dir[1] * cos_g
-                e_diff = (self.field.ground_irradiance_at(mus_g) @ self.to_full) * e_sun
+                e_diff = self.to_full(self.field.ground_irradiance_at(mus_g)) * e_sun
                 ms_ground[gi] = t_ground_s * albedo * e_diff
                 rebalance[gi] += t_ground_s * albedo * e_dir_s - ground[gi]
         multiple = ms_ground + rebalance
         if ms_on and self._aureole is not None:
             multiple = multiple + aureole
         if ms_on:
-            multiple = multiple + (self._gather_ms(rings, D) @ self.to_full) * e_sun
+            multiple = multiple + self.to_full(self._gather_ms(rings, D)) * e_sun
         return single, multiple, ground
 
     def _exact(self, d):
