@@ -1091,6 +1091,20 @@ class CoarseOrders:
     operators: Callable[[], tuple[np.ndarray, PeakDiffuse | None]]
 
 
+def _corrected(radiance, factor, n_sub: int) -> None:
+    """``radiance[..., :n_sub] *= factor``, then 0 where that is negative. The factor (>= 0) is
+    the spherical transport over the column one; at a node the column geometry puts in the
+    dark, the column light is ~0 and may be slightly negative (the sources' rounding-level
+    negatives), while a factor read back from the pair-averaged azimuths
+    (``spherical_coarse_phi``) can be 1e4: their product was a negative radiance of 38 % of the
+    field's largest (desert AOD 0.5, `final`, a sun node at -6.2 degrees, 2.8 km up, looking
+    0.7 degrees above the horizon), which the cut peak's small-angle term spread into the
+    next order's source at 1 % of its largest. A radiance is never negative."""
+    part = radiance[..., :n_sub]
+    part *= factor
+    np.maximum(part, 0.0, out=part)
+
+
 def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G: np.ndarray, grid: TableGrid,
                           ground_albedo: np.ndarray, *, orders: int | None, max_orders: int, tolerance: float,
                           spherical: _SphericalTransport | None = None, spherical_orders: int = 0,
@@ -1149,10 +1163,10 @@ def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G:
         radiance = gathered_radiance(j_n, lg, M, G, grid, out=work.get("radiance", field))
         if spherical is not None and n <= spherical_orders:
             ratio = spherical.correction(j_n, lg, radiance)  # at the first n_sub sun nodes
-            radiance[..., :n_sub] *= ratio
-            last_ratio = np.minimum(ratio, SPHERICAL_TAIL_RATIO_MAX) if (spherical_tail and n >= 3) else None
+            _corrected(radiance, ratio, n_sub)
+            last_ratio = np.clip(ratio, 0.0, SPHERICAL_TAIL_RATIO_MAX) if (spherical_tail and n >= 3) else None
         elif last_ratio is not None:
-            radiance[..., :n_sub] *= last_ratio
+            _corrected(radiance, last_ratio, n_sub)
         e_n = ground_diffuse_irradiance(radiance, grid)
         e_diffuse = e_diffuse + e_n
         series.sizes.append(scale * sizes_n)
@@ -1585,7 +1599,11 @@ class _SphericalTransport:
             j_probe, col = (azimuth_pair_mean(x, self.n_mu, self.fine_n_phi) for x in (j_probe, col))
         sph = self.transport(j_probe, lg)  # (P, rays, n_phi, n_sub)
         col = dir_in_ray_order(col, self.n_mu, self.n_phi).reshape(sph.shape)
-        r = np.where(col > 0.0, sph / np.where(col > 0.0, col, 1.0), 1.0)  # (P, rays, n_phi, n_sub)
+        # a radiance is never negative: the transport's few negative values (linear sun-angle reads of
+        # sources with rounding-level negatives) are 0 (a negative factor, applied again to the tail's
+        # orders, made the series diverge at a dark node: desert -4 degrees, sun node -7.5 degrees,
+        # factor -416, the node's radiance x11 an order)
+        r = np.where(col > 0.0, np.maximum(sph, 0.0) / np.where(col > 0.0, col, 1.0), 1.0)  # (P, rays, n_phi, n_sub)
         if self.coarse:  # back on the solver's azimuths (at the probe wavelengths: n_wl / P times less work)
             r = azimuths_to_fine(r, axis=2)
         if self.to_all is not None:
