@@ -98,3 +98,21 @@ def test_twilight_sky_from_40_nm_solver_wavelengths_matches_every_wavelength():
     err = np.abs((coarse @ cmf) / (every @ cmf) - 1).max()
     err_lin = np.abs((linear @ cmf) / (every @ cmf) - 1).max()
     assert err < 0.004 and err < err_lin / 4, (err, err_lin)
+
+
+@pytest.mark.parametrize("lo, hi, step_nm, solver_step_nm", [(500.0, 600.0, 5.0, 40.0), (550.0, 650.0, 2.0, 20.0),
+                                                             (380.0, 780.0, 1.0, 10.0)])
+def test_narrow_and_fine_grids_stay_bounded(lo, hi, step_nm, solver_step_nm):
+    """A band of 100 nm at 40 nm has 4 solver wavelengths, as many as the model's terms (an
+    exact fit, the least squares gone): the weights stay near those of interpolation (at most
+    1.7 here) and the twilight mixture is still read closer than linearly; a 1-nm grid too."""
+    wl = np.arange(lo, hi + 0.01, step_nm)
+    prof = Atmosphere(month=6).optical_profile(wl)
+    tau = prof.vertical_optical_depth(prof.ozone_absorption)
+    src = solver_wavelengths(wl, solver_step_nm)
+    m = SolverSpectrumMap(src, wl, tau)
+    assert np.abs(m.log).max() < 2.0
+    lam = wl / 550.0
+    s = sum(w * lam ** -4 * np.exp(-n * tau) for w, n in ((1.0, 2.0), (0.6, 20.0), (0.3, 60.0)))
+    at_src = np.interp(src, wl, s)
+    assert np.abs(m(at_src) / s - 1).max() < 0.5 * np.abs(at_src @ m.linear / s - 1).max()

@@ -19,9 +19,9 @@ import numpy as np
 
 sys.path[:0] = [str(Path(__file__).resolve().parents[2] / "benchmarks")]
 import bench_truth as bt  # noqa: E402
+from _setup import sub_solution  # noqa: E402
 from skymodel.colorimetry import cmf_weights  # noqa: E402
-from skymodel.render.marcher import SkyMarcher, profile_at_wavelengths, solve_sky  # noqa: E402
-from skymodel.render.medium import factor_medium  # noqa: E402
+from skymodel.render.marcher import SkyMarcher, solve_sky  # noqa: E402
 from skymodel.render.quality import QUALITIES  # noqa: E402
 from skymodel.render.rays import sun_direction  # noqa: E402
 from skymodel.render.solver_spectrum import SolverSpectrumMap  # noqa: E402
@@ -44,14 +44,6 @@ class Linear:
         return np.asarray(v) @ self.m.linear
 
 
-def sub_solution(sol, profile, idx, to_full):
-    f = sol.field
-    w = f.wavelengths_nm[idx]
-    sc = None if f.scattering is None else replace(f.scattering, weights=f.scattering.weights[:, idx])
-    field = replace(f, wavelengths_nm=w, source=np.ascontiguousarray(f.source[idx]),
-                    ground_diffuse_irradiance=f.ground_diffuse_irradiance[:, idx], scattering=sc)
-    pm = replace(profile_at_wavelengths(profile, w), solar_irradiance=np.ones_like(w))
-    return replace(sol, medium_ms=factor_medium(pm, sol.medium.cutoff_deg), field=field, to_full=to_full)
 
 
 def stats(r, full, keep, views):

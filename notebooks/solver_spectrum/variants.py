@@ -12,9 +12,9 @@ from dataclasses import replace
 import numpy as np
 sys.path[:0] = [str(__import__("pathlib").Path(__file__).resolve().parents[2] / "benchmarks")]
 import bench_truth as bt
-from skymodel.render.marcher import SkyMarcher, solve_sky, profile_at_wavelengths
+from _setup import sub_solution
+from skymodel.render.marcher import SkyMarcher, solve_sky
 from skymodel.render.quality import QUALITIES
-from skymodel.render.medium import factor_medium
 from skymodel.numerics import linear_interp_matrix
 from skymodel.wavelengths import default_wavelengths
 from skymodel.colorimetry import cmf_weights
@@ -52,25 +52,24 @@ def log_weights(src, dst, tau, basis="1xt", width=4):
     return W
 
 
+class Linear:
+    """The linear map, called as the marcher calls its ``to_full``."""
+    def __init__(self, W):
+        self.W = W
+    def __call__(self, x):
+        return np.asarray(x) @ self.W
+
+
 class LogInterp:
-    __array_ufunc__ = None
     def __init__(self, W, Wlin):
         self.W, self.Wlin = W, Wlin
-    def __rmatmul__(self, x):
+    def __call__(self, x):
         x = np.asarray(x)
         pos = np.all(x > 0, axis=-1, keepdims=True)
         lx = np.log(np.where(x > 0, x, 1.0))
         return np.where(pos, np.exp(lx @ self.W), x @ self.Wlin)
 
 
-def sub_solution(sol, profile, idx, W):
-    f = sol.field
-    wl = f.wavelengths_nm[idx]
-    sc = None if f.scattering is None else replace(f.scattering, weights=f.scattering.weights[:, idx])
-    field = replace(f, wavelengths_nm=wl, source=np.ascontiguousarray(f.source[idx]),
-                    ground_diffuse_irradiance=f.ground_diffuse_irradiance[:, idx], scattering=sc)
-    pm = replace(profile_at_wavelengths(profile, wl), solar_irradiance=np.ones_like(wl))
-    return replace(sol, medium_ms=factor_medium(pm, sol.medium.cutoff_deg), field=field, to_full=W)
 
 
 wl = default_wavelengths(5.0)
@@ -97,7 +96,7 @@ for name in sys.argv[1].split(","):
         idx = np.arange(0, wl.size, k)
         src = wl[idx]
         Wl = linear_interp_matrix(src, wl)
-        variants = {"lin": Wl}
+        variants = {"lin": Linear(Wl)}
         for b, wd in (("log", 4), ("1t", 4), ("1xt", 4), ("1xqt", 4), ("1Lt", 4), ("1Lt", 6), ("1LQt", 6),
                       ("1LQt", 8)):
             variants[f"{b}{wd}"] = LogInterp(log_weights(src, wl, tau_o3, b, wd), Wl)
