@@ -52,7 +52,8 @@ def test_a_power_law_through_an_ozone_column_is_carried_exactly(ozone):
 
 
 def test_a_mixture_of_columns_is_close_and_far_closer_than_linear(ozone):
-    """Light along many paths is a sum of such terms, not one: still within 0.3 % from 10 nm."""
+    """Light along many paths is a sum of such terms, not one: still within 0.4 % from 10 nm
+    (0.28 %; linear 2.9 %)."""
     lam = WL / 550.0
     s = sum(w * lam ** -4 * np.exp(-n * ozone) for w, n in ((1.0, 2.0), (0.6, 20.0), (0.3, 60.0)))
     src = solver_wavelengths(WL, 10.0)
