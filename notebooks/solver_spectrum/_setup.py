@@ -1,4 +1,5 @@
-"""Shared by measure.py and variants.py: a solution cut down to some of its solver wavelengths."""
+"""Shared by measure.py and variants.py: a solution cut down to some of its solver wavelengths, and
+the linear map they compare against."""
 from dataclasses import replace
 
 import numpy as np
@@ -17,3 +18,14 @@ def sub_solution(sol, profile, idx, to_full):
                     ground_diffuse_irradiance=f.ground_diffuse_irradiance[:, idx], scattering=sc)
     pm = replace(profile_at_wavelengths(profile, w), solar_irradiance=np.ones_like(w))
     return replace(sol, medium_ms=factor_medium(pm, sol.medium.cutoff_deg), field=field, to_full=to_full)
+
+
+class LinearMap:
+    """Spectra carried by a plain matrix (the linear reading before the log-ozone map), called
+    as the marcher calls its ``to_full``."""
+
+    def __init__(self, matrix):
+        self.matrix = matrix
+
+    def __call__(self, values):
+        return np.asarray(values) @ self.matrix

@@ -19,7 +19,7 @@ import numpy as np
 
 sys.path[:0] = [str(Path(__file__).resolve().parents[2] / "benchmarks")]
 import bench_truth as bt  # noqa: E402
-from _setup import sub_solution  # noqa: E402
+from _setup import LinearMap, sub_solution  # noqa: E402
 from skymodel.colorimetry import cmf_weights  # noqa: E402
 from skymodel.render.marcher import SkyMarcher, solve_sky  # noqa: E402
 from skymodel.render.quality import QUALITIES  # noqa: E402
@@ -32,18 +32,6 @@ scenes = (sys.argv[1] if len(sys.argv) > 1 else "rural:60,rural:20,rural:5,rural
 steps = [int(v) for v in (sys.argv[2] if len(sys.argv) > 2 else "10,20,40").split(",")]
 wl = default_wavelengths(5.0)
 cmf = cmf_weights(wl)
-
-
-class Linear:
-    """The map before (linear in wavelength), for the comparison."""
-
-    def __init__(self, m):
-        self.m = m
-
-    def __call__(self, v):
-        return np.asarray(v) @ self.m.linear
-
-
 
 
 def stats(r, full, keep, views):
@@ -80,7 +68,7 @@ for name in scenes.split(","):
     for step in steps:
         idx = np.arange(0, wl.size, step // 5)
         m = SolverSpectrumMap.for_profile(wl[idx], prof)
-        for label, to_full in (("linear", Linear(m)), ("log, ozone", m)):
+        for label, to_full in (("linear", LinearMap(m.linear)), ("log, ozone", m)):
             r = render(sub_solution(sol, prof, idx, to_full))
             print(f"| {name} | {step} nm | {label} | {stats(r, full, keep, views)} |", flush=True)
     print(f"(solve at 81 wavelengths {solve_s:.0f} s)", file=sys.stderr, flush=True)

@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 sys.path[:0] = [str(__import__("pathlib").Path(__file__).resolve().parents[2] / "benchmarks")]
 import bench_truth as bt
-from _setup import sub_solution
+from _setup import LinearMap, sub_solution
 from skymodel.render.marcher import SkyMarcher, solve_sky
 from skymodel.render.quality import QUALITIES
 from skymodel.numerics import linear_interp_matrix
@@ -52,14 +52,6 @@ def log_weights(src, dst, tau, basis="1xt", width=4):
     return W
 
 
-class Linear:
-    """The linear map, called as the marcher calls its ``to_full``."""
-    def __init__(self, W):
-        self.W = W
-    def __call__(self, x):
-        return np.asarray(x) @ self.W
-
-
 class LogInterp:
     def __init__(self, W, Wlin):
         self.W, self.Wlin = W, Wlin
@@ -96,7 +88,7 @@ for name in sys.argv[1].split(","):
         idx = np.arange(0, wl.size, k)
         src = wl[idx]
         Wl = linear_interp_matrix(src, wl)
-        variants = {"lin": Linear(Wl)}
+        variants = {"lin": LinearMap(Wl)}
         for b, wd in (("log", 4), ("1t", 4), ("1xt", 4), ("1xqt", 4), ("1Lt", 4), ("1Lt", 6), ("1LQt", 6),
                       ("1LQt", 8)):
             variants[f"{b}{wd}"] = LogInterp(log_weights(src, wl, tau_o3, b, wd), Wl)

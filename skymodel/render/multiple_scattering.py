@@ -1164,7 +1164,7 @@ def sum_scattering_orders(radiance: np.ndarray, species: list, M: np.ndarray, G:
         if spherical is not None and n <= spherical_orders:
             ratio = spherical.correction(j_n, lg, radiance)  # at the first n_sub sun nodes
             _corrected(radiance, ratio, n_sub)
-            last_ratio = np.clip(ratio, 0.0, SPHERICAL_TAIL_RATIO_MAX) if (spherical_tail and n >= 3) else None
+            last_ratio = np.minimum(ratio, SPHERICAL_TAIL_RATIO_MAX) if (spherical_tail and n >= 3) else None
         elif last_ratio is not None:
             _corrected(radiance, last_ratio, n_sub)
         e_n = ground_diffuse_irradiance(radiance, grid)
