@@ -77,6 +77,24 @@ def test_spectra_with_zeros_are_read_linearly_and_the_dtype_kept(ozone):
     np.testing.assert_allclose(m0((src / 550.0) ** -4), (WL / 550.0) ** -4, rtol=1e-9)
 
 
+def test_first_axis_in_float32_is_the_last_axis_in_float64(ozone):
+    """The spherical correction's factor goes through the map with the wavelength first and in
+    float32 (``axis=0, dtype=float32``): the same numbers as the default reading of its transpose,
+    to float32 rounding, zeros read linearly as there."""
+    src = solver_wavelengths(WL, 100.0)
+    m = SolverSpectrumMap(src, WL, ozone)
+    rng = np.random.default_rng(2)
+    v = rng.uniform(0.2, 3.0, (src.size, 4, 3)).astype(np.float32)
+    v[1, 2, 0] = 0.0  # one column with a zero: linear
+    first = m(v, axis=0, dtype=np.float32)
+    assert first.dtype == np.float32 and first.shape == (WL.size, 4, 3)
+    last = m(np.moveaxis(v, 0, -1))
+    np.testing.assert_allclose(first, np.moveaxis(last, -1, 0), rtol=2e-6)
+    np.testing.assert_allclose(first[:, 2, 0], v[:, 2, 0] @ m.linear, rtol=2e-6)
+    with pytest.raises(ValueError, match="axis"):
+        m(v, axis=1)
+
+
 def test_twilight_sky_from_40_nm_solver_wavelengths_matches_every_wavelength():
     """A rural sky at sun -4 degrees (the Chappuis band is its colour), `preview`'s tables: the
     sky with the solver at 40 nm against the solver at every 5-nm wavelength, in CIE XYZ,

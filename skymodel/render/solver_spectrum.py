@@ -23,6 +23,11 @@ wavelengths, so the bumps between solver wavelengths come from the ozone table i
 map is linear in ln S: one (n_solver, n_render) weight matrix, built once per solution.
 
 Spectra with a value <= 0 at any solver wavelength (no logarithm) are interpolated linearly.
+
+The solver itself uses the same map one step earlier: its spherical correction is computed at
+probe wavelengths about 100 nm apart and carried to the other solver wavelengths by it
+(:class:`skymodel.render.multiple_scattering._SphericalTransport`; there with the wavelength on
+the first axis and in float32).
 """
 
 from __future__ import annotations
@@ -97,15 +102,26 @@ class SolverSpectrumMap:
         ozone = profile.vertical_optical_depth(profile.ozone_absorption)
         return cls(solver_nm, profile.wavelengths_nm, ozone, stencil)
 
-    def __call__(self, values) -> np.ndarray:
+    def __call__(self, values, axis: int = -1, dtype=np.float64) -> np.ndarray:
+        """``values`` with its wavelength axis ``axis`` (the last, or 0) carried to the render's
+        wavelengths; the logarithms and weights in ``dtype`` (float64; float32 where the spectra are
+        float32 and large: the spherical correction's factor)."""
         v = np.asarray(values)
         if self.identity:
             return v
+        if axis not in (0, -1, v.ndim - 1):
+            raise ValueError(f"axis must be 0 or the last, got {axis}")
+        first = axis == 0 and v.ndim > 1
+
+        def apply(x, w):  # x (..., n_solver) or (n_solver, ...) with w (n_solver, n_render)
+            w = w.astype(x.dtype, copy=False)
+            return np.einsum("p...,pw->w...", x, w) if first else x @ w
+
         if self.log is None:
-            return v @ self.linear
-        positive = np.all(v > 0, axis=-1, keepdims=True)
-        log_v = np.log(np.where(v > 0, v, 1), dtype=np.float64)
-        out = np.exp(log_v @ self.log)
+            return apply(v, self.linear)
+        positive = np.all(v > 0, axis=0 if first else -1, keepdims=True)
+        out = apply(np.log(np.where(v > 0, v, 1), dtype=dtype), self.log)
+        np.exp(out, out=out)  # in place: the factor's arrays are tens of MB
         if not np.all(positive):
-            out = np.where(positive, out, v @ self.linear)
+            np.copyto(out, apply(v.astype(dtype, copy=False), self.linear), where=~positive)
         return out.astype(np.result_type(v.dtype, np.float32), copy=False)
