@@ -187,3 +187,13 @@ def test_effect_table_time_ratios_are_medians_over_the_sun_elevations():
     assert eff.time_ratio("orders_4") == pytest.approx(0.5)
     el = data["rows"][5]["sun_elevation_deg"]
     assert eff.time("orders_4", el) == pytest.approx(0.5 * eff.time("reference", el))
+
+
+def test_knob_time_ratios_multiply():
+    """Fewer orders at fewer wavelengths: each knob's measured time ratio applies to what the
+    other leaves (summed savings predicted `product_noon` at half its measured time)."""
+    assert decisions.combined_saving(10.0, 6.0, 2.0) == pytest.approx(10.0 * (1 - 0.4 * 0.8))
+    assert decisions.combined_saving(10.0, 0.0, 0.0) == 0.0
+    assert decisions.combined_saving(10.0, 4.0) == pytest.approx(4.0)
+    assert decisions.combined_saving(10.0, 12.0, 3.0) == pytest.approx(10.0)  # never below zero time
+    assert decisions.combined_saving(0.0, 1.0) == 0.0
