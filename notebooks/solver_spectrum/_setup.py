@@ -1,11 +1,24 @@
-"""Shared by measure.py and variants.py: a solution cut down to some of its solver wavelengths, and
-the linear map they compare against."""
+"""Shared by the scripts here: the views they compare on, a solution cut down to some of its solver
+wavelengths, and the linear map they compare against."""
 from dataclasses import replace
 
 import numpy as np
 
 from skymodel.render.marcher import profile_at_wavelengths
 from skymodel.render.medium import factor_medium
+from skymodel.render.rays import sun_direction
+from skymodel.validation.truth import EXCLUDE_DEG, angle_to_sun_deg, view_directions
+
+
+def scene_views(sc, sun_azimuth_deg):
+    """(views, dirs, keep) of a bench_truth ``Scene``: its own views and a grid (zenith 0-89.5 deg,
+    azimuth from the sun 0-180 deg every 10), as (zenith, azimuth) rows and unit vectors, and which
+    of them lie outside the sun's disc and the aureole's first 2 deg (truth.EXCLUDE_DEG)."""
+    Z, A = np.meshgrid(np.r_[np.arange(0, 85, 5.0), 86, 87, 88, 89, 89.5], np.arange(0, 181, 10.0), indexing="ij")
+    grid = np.stack([Z.ravel(), A.ravel()], -1)
+    dirs = np.concatenate([sc.dirs, view_directions(grid, sun_azimuth_deg)])
+    keep = angle_to_sun_deg(dirs, sun_direction(sc.elev, sun_azimuth_deg)) > EXCLUDE_DEG
+    return np.concatenate([sc.views, grid]), dirs, keep
 
 
 def sub_solution(sol, profile, idx, to_full):

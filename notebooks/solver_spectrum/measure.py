@@ -19,13 +19,11 @@ import numpy as np
 
 sys.path[:0] = [str(Path(__file__).resolve().parents[2] / "benchmarks")]
 import bench_truth as bt  # noqa: E402
-from _setup import LinearMap, sub_solution  # noqa: E402
+from _setup import LinearMap, scene_views, sub_solution  # noqa: E402
 from skymodel.colorimetry import cmf_weights  # noqa: E402
 from skymodel.render.marcher import SkyMarcher, solve_sky  # noqa: E402
 from skymodel.render.quality import QUALITIES  # noqa: E402
-from skymodel.render.rays import sun_direction  # noqa: E402
 from skymodel.render.solver_spectrum import SolverSpectrumMap  # noqa: E402
-from skymodel.validation.truth import view_directions  # noqa: E402
 from skymodel.wavelengths import default_wavelengths  # noqa: E402
 
 scenes = (sys.argv[1] if len(sys.argv) > 1 else "rural:60,rural:20,rural:5,rural:-4,desert:60,desert:0,desert:-4")
@@ -51,11 +49,7 @@ for name in scenes.split(","):
     a, e = name.split(":")
     sc = bt.Scene(a, float(e), "/nonexistent")
     prof = sc.atm.optical_profile(list(wl))
-    Z, A = np.meshgrid(np.r_[np.arange(0, 85, 5.0), 86, 87, 88, 89, 89.5], np.arange(0, 181, 10.0), indexing="ij")
-    grid = np.stack([Z.ravel(), A.ravel()], -1)
-    views = np.concatenate([sc.views, grid])
-    dirs = np.concatenate([sc.dirs, view_directions(grid, bt.SUN_AZIMUTH)])
-    keep = np.degrees(np.arccos(np.clip(dirs @ sun_direction(sc.elev, bt.SUN_AZIMUTH), -1, 1))) > 2.27
+    views, dirs, keep = scene_views(sc, bt.SUN_AZIMUTH)
     s = replace(QUALITIES["final"].settings, ms_wavelength_step_nm=5.0)
     t = time.perf_counter()
     sol = solve_sky(prof, s)

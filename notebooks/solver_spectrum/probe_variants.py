@@ -16,14 +16,13 @@ linearly where that range leaves [0.05, 20].
 """
 import sys, time; sys.path[:0] = [str(__import__("pathlib").Path(__file__).resolve().parents[2] / "benchmarks")]
 import numpy as np, bench_truth as bt
+from _setup import scene_views
 from dataclasses import replace
 import skymodel.render.multiple_scattering as ms
 from skymodel.numerics import linear_interp_matrix
 from skymodel.render.marcher import SkyMarcher, solver_wavelengths
 from skymodel.render.quality import QUALITIES
-from skymodel.render.rays import sun_direction
 from skymodel.render.solver_spectrum import SolverSpectrumMap
-from skymodel.validation.truth import view_directions
 from skymodel.wavelengths import default_wavelengths
 from skymodel.colorimetry import cmf_weights
 
@@ -74,10 +73,7 @@ ms._SphericalTransport.correction = patched
 modes = args[1].split(",") if len(args) > 1 else ["linear", "loglin", "map", "tauR", "tauT", "tauTO", "tauRA", "tauROA"]
 for name in args[0].split(","):
     a, e = name.split(":"); sc = bt.Scene(a, float(e), "/nonexistent"); prof = sc.atm.optical_profile(list(wl))
-    Z, A = np.meshgrid(np.r_[np.arange(0, 85, 5.0), 86, 87, 88, 89, 89.5], np.arange(0, 181, 10.0), indexing="ij")
-    grid = np.stack([Z.ravel(), A.ravel()], -1); views = np.concatenate([sc.views, grid])
-    dirs = np.concatenate([sc.dirs, view_directions(grid, bt.SUN_AZIMUTH)])
-    keep = np.degrees(np.arccos(np.clip(dirs @ sun_direction(sc.elev, bt.SUN_AZIMUTH), -1, 1))) > 2.27
+    views, dirs, keep = scene_views(sc, bt.SUN_AZIMUTH)
     s = replace(QUALITIES["final"].settings, spherical_probe_step_nm=10.0)
     ws = solver_wavelengths(wl, s.ms_wavelength_step_nm)
     idx = np.unique(np.round(np.linspace(0, ws.size - 1, int(np.ceil(np.ptp(ws) / 100.0)) + 1)).astype(int))

@@ -1,25 +1,22 @@
-"""The spherical correction's probe wavelengths: `final` (probes about 100 nm apart, the factor read
-linearly between them) against the correction computed at every solver wavelength
-(`spherical_probe_step_nm=10`), on bench_truth's views and the grid of measure.py, render grid 5 nm.
+"""The spherical correction's probe wavelengths: `final` (probes about 100 nm apart, the factor carried
+between them by the solver's map; read linearly before 4b13185) against the correction computed at
+every solver wavelength (`spherical_probe_step_nm=10`), on bench_truth's views and a grid
+(`_setup.scene_views`), render grid 5 nm.
 
     python notebooks/solver_spectrum/probes.py desert:-4,rural:-4
 """
 import sys, time; sys.path[:0] = [str(__import__("pathlib").Path(__file__).resolve().parents[2] / "benchmarks")]
 import numpy as np, bench_truth as bt
+from _setup import scene_views
 from dataclasses import replace
 from skymodel.render.marcher import SkyMarcher
 from skymodel.render.quality import QUALITIES
-from skymodel.render.rays import sun_direction
-from skymodel.validation.truth import view_directions
 from skymodel.wavelengths import default_wavelengths
 from skymodel.colorimetry import cmf_weights
 wl = default_wavelengths(5.0); cmf = cmf_weights(wl)
 for name in sys.argv[1].split(","):
     a, e = name.split(":"); sc = bt.Scene(a, float(e), "/nonexistent"); prof = sc.atm.optical_profile(list(wl))
-    Z, A = np.meshgrid(np.r_[np.arange(0, 85, 5.0), 86, 87, 88, 89, 89.5], np.arange(0, 181, 10.0), indexing="ij")
-    grid = np.stack([Z.ravel(), A.ravel()], -1); views = np.concatenate([sc.views, grid])
-    dirs = np.concatenate([sc.dirs, view_directions(grid, bt.SUN_AZIMUTH)])
-    keep = np.degrees(np.arccos(np.clip(dirs @ sun_direction(sc.elev, bt.SUN_AZIMUTH), -1, 1))) > 2.27
+    views, dirs, keep = scene_views(sc, bt.SUN_AZIMUTH)
     out = {}
     for tag, step in (("probe100", 100.0), ("probe10", 10.0)):
         s = replace(QUALITIES["final"].settings, spherical_probe_step_nm=step)

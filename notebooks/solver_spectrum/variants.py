@@ -12,14 +12,12 @@ from dataclasses import replace
 import numpy as np
 sys.path[:0] = [str(__import__("pathlib").Path(__file__).resolve().parents[2] / "benchmarks")]
 import bench_truth as bt
-from _setup import LinearMap, sub_solution
+from _setup import LinearMap, scene_views, sub_solution
 from skymodel.render.marcher import SkyMarcher, solve_sky
 from skymodel.render.quality import QUALITIES
 from skymodel.numerics import linear_interp_matrix
 from skymodel.wavelengths import default_wavelengths
 from skymodel.colorimetry import cmf_weights
-from skymodel.render.rays import sun_direction
-from skymodel.validation.truth import view_directions
 
 
 def log_weights(src, dst, tau, basis="1xt", width=4):
@@ -71,9 +69,7 @@ for name in sys.argv[1].split(","):
     sc = bt.Scene(a, float(e), "/nonexistent")
     prof = sc.atm.optical_profile(list(wl))
     tau_o3 = prof.vertical_optical_depth(prof.ozone_absorption)
-    Z, A = np.meshgrid(np.r_[np.arange(0, 85, 5.0), 86, 87, 88, 89, 89.5], np.arange(0, 181, 10.0), indexing="ij")
-    VIEWS = np.concatenate([sc.views, np.stack([Z.ravel(), A.ravel()], -1)])
-    dirs = np.concatenate([sc.dirs, view_directions(np.stack([Z.ravel(), A.ravel()], -1), bt.SUN_AZIMUTH)])
+    VIEWS, dirs, keep = scene_views(sc, bt.SUN_AZIMUTH)
     s = replace(QUALITIES["final"].settings, ms_wavelength_step_nm=5.0)
     t = time.perf_counter(); sol = solve_sky(prof, s); ts = time.perf_counter() - t
     print(f"{name}: solve {ts:.1f} s", flush=True)
@@ -81,8 +77,6 @@ for name in sys.argv[1].split(","):
         return SkyMarcher(prof, sc.elev, bt.SUN_AZIMUTH, 0.0, s, solution=solution).radiance(dirs).radiance
     full = render(sol)
     cmf = cmf_weights(wl)
-    ang = np.degrees(np.arccos(np.clip(dirs @ sun_direction(sc.elev, bt.SUN_AZIMUTH), -1, 1)))
-    keep = ang > 2.27
     Yf = full @ cmf
     for k in KS:
         idx = np.arange(0, wl.size, k)
