@@ -301,7 +301,7 @@ def test_spherical_factor_between_probes_follows_the_log_ozone_map(monkeypatch):
     from dataclasses import replace
 
     import skymodel.render.multiple_scattering as ms
-    from skymodel.numerics import linear_interp_matrix
+    from skymodel.render.solver_spectrum import SolverSpectrumMap
 
     wl = np.arange(380.0, 781.0, 20.0)
     prof = synthetic_profile(wl, aod550=0.2)
@@ -316,12 +316,10 @@ def test_spherical_factor_between_probes_follows_the_log_ozone_map(monkeypatch):
     every = multiple(replace(base, spherical_probe_step_nm=20))
     mapped_err = np.abs(multiple(base) / every - 1).max()
 
-    class Linear:  # the probes read linearly, as before the map
-        def __init__(self, probe_nm, solver_nm, ozone_depth=None):
-            self.matrix = linear_interp_matrix(probe_nm, solver_nm).astype(np.float32)
-
-        def __call__(self, values, axis=0, dtype=None):
-            return np.einsum("p...,pw->w...", values, self.matrix)
+    class Linear(SolverSpectrumMap):  # the probes read linearly, as before the map: its own fallback
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self.log = None
 
     monkeypatch.setattr(ms, "SolverSpectrumMap", Linear)
     linear_err = np.abs(multiple(base) / every - 1).max()

@@ -76,7 +76,7 @@ for name in args[0].split(","):
     views, dirs, keep = scene_views(sc, bt.SUN_AZIMUTH)
     s = replace(QUALITIES["final"].settings, spherical_probe_step_nm=10.0)
     ws = solver_wavelengths(wl, s.ms_wavelength_step_nm)
-    idx = np.unique(np.round(np.linspace(0, ws.size - 1, int(np.ceil(np.ptp(ws) / 100.0)) + 1)).astype(int))
+    idx = ms.probe_indices(ws, QUALITIES["final"].settings.spherical_probe_step_nm)
     pw = sc.atm.optical_profile(list(ws))
     tau = {"R": pw.vertical_optical_depth(pw.rayleigh_scattering), "O": pw.vertical_optical_depth(pw.ozone_absorption),
            "A": pw.vertical_optical_depth(pw.aerosol_scattering + pw.aerosol_absorption)}

@@ -73,7 +73,7 @@ from skymodel.geometry import altitude_grid
 from skymodel.render.medium import FactoredMedium, LowRank, march_samples, step_transmittance
 from skymodel.render.peak_diffuse import PeakDiffuse
 from skymodel.render.rays import altitude_along, atmosphere_segment
-from skymodel.render.solver_spectrum import SolverSpectrumMap
+from skymodel.render.solver_spectrum import SolverSpectrumMap, ozone_column
 from skymodel.render.sun_transmittance import SUN_ANGULAR_RADIUS_RAD, SunTransmittance, horizon_mu
 from skymodel.render.threads import SOLVER_THREADS, chunks_in_threads
 
@@ -1258,8 +1258,7 @@ def solve_multiple_scattering(profile, medium: FactoredMedium, sun_table: SunTra
             r0=rays.r0, mu0=rays.mu0, t=rays.t, dt=rays.dt, h=rays.h, R=profile.planet_radius_m, hits=rays.hits,
             ground_t=rays.ground_t, h_nodes=grid.h_nodes, mu_nodes=grid.mu_nodes, phi_nodes=grid.phi_nodes,
             mus_nodes=grid.mus_nodes, wavelengths_nm=grid.wavelengths_nm, probe_step_nm=spherical_probe_step_nm,
-            ozone_depth=profile.vertical_optical_depth(profile.ozone_absorption), coarse_phi=spherical_coarse_phi,
-            **sigma)
+            ozone_depth=ozone_column(profile), coarse_phi=spherical_coarse_phi, **sigma)
     peak = PeakDiffuse(profile, medium, grid) if peak_diffuse else None
     coarse = None
     if coarse_phi_from_order:
@@ -1430,6 +1429,14 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
     return out  # (n_wl, rays, n_phi * n_mus)
 
 
+def probe_indices(wavelengths_nm, step_nm: float) -> np.ndarray:
+    """Indices of the spherical correction's probe wavelengths among the solver's (ascending, nm):
+    about ``step_nm`` apart, evenly spaced in index, both ends included."""
+    wl = np.asarray(wavelengths_nm, float)
+    n_probe = int(np.clip(np.ceil((wl[-1] - wl[0]) / max(step_nm, 1e-9)) + 1, 1, wl.size))
+    return np.unique(np.round(np.linspace(0, wl.size - 1, n_probe)).astype(int))
+
+
 class _SphericalTransport:
     """Transport of a higher-order source J_n along the grid rays with the sun angle
     of every point, as a correction to the independent-column transport.
@@ -1480,8 +1487,7 @@ class _SphericalTransport:
         if self.coarse:
             phi_nodes = coarse_azimuths(phi_nodes)
         wl = np.asarray(wavelengths_nm, float)
-        n_probe = int(np.clip(np.ceil((wl[-1] - wl[0]) / max(probe_step_nm, 1e-9)) + 1, 1, wl.size))
-        self.probe = np.unique(np.round(np.linspace(0, wl.size - 1, n_probe)).astype(int))
+        self.probe = probe_indices(wl, probe_step_nm)
         # probes -> every solver wavelength (applied to the factor in float32: in float64 it was the
         # solve's largest transient array)
         self.to_all = (None if self.probe.size == wl.size
@@ -1613,7 +1619,7 @@ class _SphericalTransport:
         if self.coarse:  # back on the solver's azimuths (at the probe wavelengths: n_wl / P times less work)
             r = azimuths_to_fine(r, axis=2)
         if self.to_all is not None:
-            r = self.to_all(r.astype(np.float32), axis=0, dtype=np.float32)
+            r = self.to_all(r.astype(np.float32, copy=False), axis=0, dtype=np.float32)
         factor = np.empty((n_wl, self.n_mu * self.fine_n_phi, self.n_h, self.n_sub), dtype=np.float32)
         np.copyto(dir_in_ray_order(factor, self.n_mu, self.fine_n_phi),
                   r.reshape(n_wl, self.n_h, self.n_mu, self.fine_n_phi, self.n_sub))

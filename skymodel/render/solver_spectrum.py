@@ -78,6 +78,11 @@ def _log_weights(src_nm: np.ndarray, dst_nm: np.ndarray, ozone_depth: np.ndarray
     return w
 
 
+def ozone_column(profile) -> np.ndarray:
+    """The model's tau_O3: ``profile``'s vertical ozone optical depth at its wavelengths."""
+    return profile.vertical_optical_depth(profile.ozone_absorption)
+
+
 class SolverSpectrumMap:
     """Spectra at the solver's wavelengths ``solver_nm`` -> the render's ``render_nm`` (both
     ascending, nm), interpolated in the logarithm with the ozone model of the module's
@@ -99,8 +104,7 @@ class SolverSpectrumMap:
     @classmethod
     def for_profile(cls, solver_nm, profile, stencil: int = STENCIL) -> "SolverSpectrumMap":
         """The map to ``profile``'s wavelengths, with its ozone column."""
-        ozone = profile.vertical_optical_depth(profile.ozone_absorption)
-        return cls(solver_nm, profile.wavelengths_nm, ozone, stencil)
+        return cls(solver_nm, profile.wavelengths_nm, ozone_column(profile), stencil)
 
     def __call__(self, values, axis: int = -1, dtype=np.float64) -> np.ndarray:
         """``values`` with its wavelength axis ``axis`` (the last, or 0) carried to the render's
