@@ -14,6 +14,18 @@ from skymodel.errors import SkymodelInputError
 EARTH_RADIUS_M = 6_360_000.0
 #: Altitude of the top of the atmosphere, metres.
 TOA_ALTITUDE_M = 100_000.0
+#: View-elevation bands (degrees, [low, high), the last one closed at 90) in which the
+#: planner's measured tables report the error of the sky seen directly: the effect table
+#: (``benchmarks/bench_planner.py``) and the accuracy table's knob rows
+#: (:mod:`skymodel.validation.accuracy`).
+VIEW_BANDS_DEG = {"ground": (-90.0, 0.0), "horizon": (0.0, 10.0), "low": (10.0, 30.0), "high": (30.0, 90.0)}
+
+
+def view_band_masks(elevation_deg) -> dict:
+    """``{band: boolean mask}`` of the view elevations (degrees, any shape) in each of
+    :data:`VIEW_BANDS_DEG`."""
+    e = np.asarray(elevation_deg, float)
+    return {b: (e >= lo) & ((e < hi) if hi < 90.0 else (e <= hi)) for b, (lo, hi) in VIEW_BANDS_DEG.items()}
 
 
 def altitude_grid(n: int = 401, top_m: float = TOA_ALTITUDE_M, stretch: float = 3.0) -> np.ndarray:

@@ -131,6 +131,38 @@ def test_errors_of_an_image_against_itself_are_zero():
         accuracy.errors(ref, wl, ref, wl, np.zeros((6, 5)))
 
 
+def test_errors_by_view_band_place_an_error_in_the_band_that_has_it():
+    """An error only near the horizon shows in the horizon band's row, not in the high sky's,
+    and the whole sky's mean is the bands' means weighted by their solid angles."""
+    rng = np.random.default_rng(5)
+    wl = default_wavelengths(20.0)
+    elev = np.repeat(np.array([2.0, 5.0, 8.0, 20.0, 45.0, 80.0])[:, None], 4, axis=1)
+    ref = rng.uniform(0.01, 0.5, elev.shape + (wl.size,))
+    w = rng.uniform(0.1, 1.0, elev.shape)
+    img = ref.copy()
+    img[elev < 10.0] *= 1.03
+    e = accuracy.errors(img, wl, ref, wl, w, elevation_deg=elev)
+    assert set(e["bands"]) == {"horizon", "low", "high"}  # no ground point, no ground band
+    assert e["bands"]["horizon"]["radiance_rel_mean"] == pytest.approx(0.03)
+    assert e["bands"]["horizon"]["radiance_rel_rms"] == pytest.approx(0.03)
+    assert e["bands"]["high"]["radiance_rel_mean"] == 0.0 and e["bands"]["high"]["de2000_mean"] <= 1e-9
+    assert e["bands"]["horizon"]["de2000_mean"] > 10 * e["bands"]["low"]["de2000_mean"]
+    share = w[elev < 10.0].sum() / w.sum()
+    assert e["radiance_rel_mean"] == pytest.approx(0.03 * share)
+    assert e["de2000_mean"] == pytest.approx(sum(e["bands"][b]["de2000_mean"] * w[m].sum() for b, m in
+                                                 (("horizon", elev < 10), ("low", (elev >= 10) & (elev < 30)),
+                                                  ("high", elev >= 30))) / w.sum())
+    assert "bands" not in accuracy.errors(img, wl, ref, wl, w)
+
+
+def test_quick_run_rows_carry_their_errors_by_view_band(quick):
+    row = _row(quick, "wavelengths", 11)
+    assert set(row["bands"]) <= {"horizon", "low", "high"} and "high" in row["bands"]
+    worst = max(b["de2000_mean"] for b in row["bands"].values())
+    least = min(b["de2000_mean"] for b in row["bands"].values())
+    assert least <= row["de2000_mean"] <= worst
+
+
 def test_band_matrix_averages_the_reference_over_each_band():
     fine, coarse = default_wavelengths(5.0), default_wavelengths(10.0)
     assert np.allclose(accuracy.band_matrix(fine, fine), np.eye(fine.size))

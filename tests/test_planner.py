@@ -247,6 +247,40 @@ def test_predictions_follow_the_accuracy_table(effects, accuracy):
     assert plan(scene, effects=effects, accuracy=faster).predicted_time_everything_s == pytest.approx(expected / 4)
 
 
+def test_knob_errors_are_those_of_the_bands_the_cameras_see(effects, accuracy):
+    """A coarse spectral grid that misses only near the horizon is priced at its horizon band's
+    error for a camera that sees the horizon, at the high sky's for one looking up, and at the
+    whole sky's for a sky seen only as lighting; rows measured without bands keep the whole sky's."""
+    from skymodel.planner import decisions
+    from skymodel.planner.tables import _AccuracyTable
+
+    banded = copy.deepcopy(accuracy)
+    for r in banded["rows"]:
+        if r["knob"] == "wavelengths" and r["value"] == 11:
+            r["bands"] = {"horizon": {"de2000_mean": r["de2000_mean"] + 3.0},
+                          "low": {"de2000_mean": r["de2000_mean"]}, "high": {"de2000_mean": 0.0}}
+    table = _AccuracyTable(banded)
+    whole = table.knob("wavelengths", 20.0, "de2000_mean")[11][0]
+    assert table.knob("wavelengths", 20.0, "de2000_mean", ["horizon", "low"])[11][0] == pytest.approx(whole + 3.0)
+    assert table.knob("wavelengths", 20.0, "de2000_mean", ["high"])[11][0] == pytest.approx(whole)
+    assert table.knob("wavelengths", 20.0, "de2000_mean", ["ground"])[11][0] == pytest.approx(whole)  # not measured
+    assert table.knob("wavelengths", 20.0, "de2000_mean", ["horizon"])[41][0] == pytest.approx(
+        table.knob("wavelengths", 20.0, "de2000_mean")[41][0])  # a row without bands
+    sees_horizon = landscape(sun_elevation_deg=20.0, farthest_object_m=0.0)
+    looks_up = landscape(sun_elevation_deg=20.0, farthest_object_m=0.0,
+                         cameras=[CameraView(altitude_m=1.7, view_directions=[(0.0, 0.3, 1.0)], fov_deg=30.0)])
+    lighting = landscape(sun_elevation_deg=20.0, farthest_object_m=0.0, sky_visible=False)
+    steps = {}
+    for name, scene in (("horizon", sees_horizon), ("up", looks_up), ("lighting", lighting)):
+        p = plan(scene, effects=effects, accuracy=banded)
+        ctx = decisions._Planning(scene, {}, *decisions.read_tables(effects, banded), unit="dE2000",
+                                  acc_metric="de2000_mean", t_ref=1.0, where="sky")
+        steps[name] = decisions.spectral_step_options(ctx)[40.0][0]
+        assert p["spectral_resolution"].value != 40.0 or steps[name] <= 0.1 * scene.tolerance
+    assert steps["horizon"] == pytest.approx(whole + 3.0)
+    assert steps["up"] == pytest.approx(whole) and steps["lighting"] == pytest.approx(whole)
+
+
 def test_the_accuracy_table_in_presets_is_read_by_default(effects):
     """With skymodel/data/presets/accuracy/measured.json present, a plan prices its spectral grid against the
     5 nm build from that table (the effect table's own reference is 10 nm, so it could not)."""

@@ -39,7 +39,7 @@ from skymodel.errors import SkymodelInputError
 from skymodel.planner import apply
 from skymodel.planner.scene import TOP_ALTITUDE_M, SceneDescription
 from skymodel.planner.tables import (_WL_COUNT_STEP, ACCURACY_PATH, EFFECTS_PATH, _AccuracyTable, _EffectTable,
-                                     load_table)
+                                     load_table, visible_bands)
 from skymodel.render.skyview import TABLE_MIN_PIXELS  # images this large resample the sky-view table
 
 #: Physical effects the planner may leave out, with the effect-table row that measures it.
@@ -294,6 +294,11 @@ class _Planning:
     def tol(self) -> float:
         return self.scene.tolerance
 
+    @property
+    def bands(self) -> list[str]:
+        """The view-elevation bands the cameras see (none when the sky is only lighting)."""
+        return visible_bands(self.scene)
+
 
 def read_tables(effects, accuracy) -> tuple[_EffectTable, _AccuracyTable | None]:
     """The measured effect table (required) and accuracy table (optional), as paths or dicts."""
@@ -382,7 +387,7 @@ def scattering_order_options(ctx: _Planning) -> dict:
     orders = {int(v): (eff.error(n, el, ctx.scene), eff.time(n, el), f"effects.json {n}")
               for v, n in eff.knob_rows("orders_").items()}
     if acc is not None:
-        for v, (e, _) in acc.knob("orders", el, ctx.acc_metric).items():
+        for v, (e, _) in acc.knob("orders", el, ctx.acc_metric, ctx.bands).items():
             if isinstance(v, (int, float)) and float(v).is_integer():
                 ratio = acc.time_ratio("orders", v, "tolerance")
                 orders.setdefault(int(v), (e, t_ref * ratio if ratio else None, f"measured.json orders={v}"))
@@ -435,7 +440,7 @@ def spectral_step_options(ctx: _Planning) -> dict:
     for v, n in eff.knob_rows("wavelength_step_").items():
         steps[float(v)] = (eff.error(n, el, ctx.scene), eff.time(n, el), f"effects.json {n}")
     if acc is not None:
-        for v, (e, _) in acc.knob("wavelengths", el, ctx.acc_metric).items():
+        for v, (e, _) in acc.knob("wavelengths", el, ctx.acc_metric, ctx.bands).items():
             if v in _WL_COUNT_STEP:
                 ratio = acc.time_ratio("wavelengths", v, 81)
                 steps[_WL_COUNT_STEP[v]] = (e, t_ref * ratio if ratio else None, f"measured.json wavelengths={v}")
@@ -502,7 +507,7 @@ def decide_volume_layers(ctx: _Planning, ap_err: float) -> Decision:
     layers = {int(v): (eff.error(n, el, ctx.scene), eff.time(n, el), f"effects.json {n}")
               for v, n in eff.knob_rows("layers_").items()}
     if acc is not None:
-        for v, (e, t) in acc.knob("layers", el, ctx.acc_metric).items():
+        for v, (e, t) in acc.knob("layers", el, ctx.acc_metric, ctx.bands).items():
             if isinstance(v, (int, float)) and float(v).is_integer() and int(v) <= MAX_LAYERS:
                 layers[int(v)] = (e, t, f"measured.json layers={v}")
     floor = TWILIGHT_MIN_LAYERS if el < 0 else 1

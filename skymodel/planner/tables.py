@@ -20,6 +20,7 @@ import os
 import numpy as np
 
 from skymodel.data import DATA_DIR
+from skymodel.geometry import VIEW_BANDS_DEG
 from skymodel.planner.scene import SceneDescription
 
 EFFECTS_PATH = str(DATA_DIR / "presets" / "planner" / "effects.json")
@@ -28,8 +29,8 @@ ACCURACY_PATH = str(DATA_DIR / "presets" / "accuracy" / "measured.json")
 #: Metric names in the tables for each tolerance kind: (sky band key, lighting key, aerial key).
 _METRIC = {"de2000": ("de2000_mean", "de2000", "de2000_max"),
            "radiance_rel": ("radiance_rel_mean", "illuminance_rel", "radiance_rel_max")}
-#: View-elevation bands of the effect table, degrees.
-BANDS_DEG = {"ground": (-90.0, 0.0), "horizon": (0.0, 10.0), "low": (10.0, 30.0), "high": (30.0, 90.0)}
+#: View-elevation bands of the effect table and the accuracy table's knob rows, degrees.
+BANDS_DEG = VIEW_BANDS_DEG
 #: Wavelength counts of the accuracy table's ``wavelengths`` knob -> step on 380..780 nm.
 _WL_COUNT_STEP = {81: 5.0, 41: 10.0, 21: 20.0, 11: 40.0}
 
@@ -146,8 +147,11 @@ class _AccuracyTable:
         y = np.array([float(values[s]) for s in names])
         return float(np.interp(el, x, y))
 
-    def knob(self, knob, el, metric) -> dict:
-        """{value: (error, time_s)} of one knob, interpolated to the sun elevation."""
+    def knob(self, knob, el, metric, bands=()) -> dict:
+        """{value: (error, time_s)} of one knob, interpolated to the sun elevation. The
+        error is the whole sky's ``metric`` (the stand-in for the sky as lighting) or,
+        where a row has it (``bands``, measured since 2026-11-29), the worse of that and
+        the view-elevation ``bands`` the cameras see, as the effect table's errors are."""
         by_value: dict = {}
         for r in self.table.get("rows", []):
             if r.get("knob") != knob:
@@ -155,7 +159,8 @@ class _AccuracyTable:
             by_value.setdefault(r["value"], {})[r["scene"]] = r
         out = {}
         for value, per_scene in by_value.items():
-            err = self._interp(el, {s: r[metric] for s, r in per_scene.items() if r.get(metric) is not None})
+            err = self._interp(el, {s: _row_error(r, metric, bands) for s, r in per_scene.items()
+                                    if r.get(metric) is not None})
             t = self._interp(el, {s: r["time_s"] for s, r in per_scene.items() if r.get("time_s") is not None})
             if err is not None:
                 out[value] = (err, t)
@@ -174,6 +179,14 @@ class _AccuracyTable:
     def preset_time(self, preset, el):
         p = self.table.get("presets", {}).get(preset, {})
         return self._interp(el, {s: v["time_s"] for s, v in p.items() if "time_s" in v})
+
+
+def _row_error(row: dict, metric: str, bands) -> float:
+    """A knob row's error for cameras that see ``bands``: the worst of the whole sky's and
+    those bands' (rows measured without bands: the whole sky's)."""
+    by_band = row.get("bands") or {}
+    return max([float(row[metric])] + [float(by_band[b][metric]) for b in bands
+                                       if b in by_band and by_band[b].get(metric) is not None])
 
 
 def visible_bands(scene: SceneDescription) -> list[str]:

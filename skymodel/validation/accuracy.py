@@ -304,14 +304,19 @@ def _lab(rgb_linear, valid, average_luminance):
     return colour.XYZ_to_Lab(colour.sRGB_to_XYZ(enc))
 
 
-def errors(radiance, wavelengths_nm, ref_radiance, ref_wavelengths_nm, weights, ref_average_luminance=None) -> dict:
+def errors(radiance, wavelengths_nm, ref_radiance, ref_wavelengths_nm, weights, ref_average_luminance=None,
+           elevation_deg=None) -> dict:
     """Error metrics of ``radiance`` (..., n_wl) against ``ref_radiance`` (..., n_ref)
     over the points where ``weights`` (...,) > 0 (weights: solid angles).
 
     Returns radiance_rel_mean / _rms / _max (fractions, over every wavelength of the
     variant, the reference averaged over each variant sample's band by
     :func:`band_matrix`) and
-    de2000_mean / _p95 (CIEDE2000 of the tone-mapped colours at the reference's exposure)."""
+    de2000_mean / _p95 (CIEDE2000 of the tone-mapped colours at the reference's exposure).
+    Given the points' view elevations (degrees, shaped like ``weights``), also ``bands``:
+    ``{band: {de2000_mean, radiance_rel_mean, radiance_rel_rms}}`` over the points of each view-elevation
+    band of :data:`skymodel.geometry.VIEW_BANDS_DEG` that holds any (the same tone
+    mapping and exposure as the whole sky's)."""
     import colour
 
     from skymodel.render.image_io import auto_exposure_luminance
@@ -341,6 +346,17 @@ def errors(radiance, wavelengths_nm, ref_radiance, ref_wavelengths_nm, weights, 
                                    method="CIE 2000"))[sel]
     out["de2000_mean"] = float((de * w[sel]).sum() / w[sel].sum())
     out["de2000_p95"] = _weighted_quantile(de, w[sel], 0.95)
+    if elevation_deg is not None:
+        from skymodel.geometry import view_band_masks
+
+        rel_mean, rel_ms = rel.mean(axis=1), (rel**2).mean(axis=1)
+        out["bands"] = {}
+        for name, m in view_band_masks(np.broadcast_to(elevation_deg, w.shape)[sel]).items():
+            if np.any(m):
+                wm = ws[m] / ws[m].sum()
+                out["bands"][name] = {"de2000_mean": float((de[m] * wm).sum()),
+                                      "radiance_rel_mean": float((rel_mean[m] * wm).sum()),
+                                      "radiance_rel_rms": float(np.sqrt((rel_ms[m] * wm).sum()))}
     return out
 
 
@@ -587,6 +603,8 @@ def _row(scene, knob, value, settings_dict, time_s, err, **extra):
            "radiance_rel_rms": err["radiance_rel_rms"], "radiance_rel_max": err["radiance_rel_max"],
            "de2000_mean": err["de2000_mean"], "de2000_p95": err["de2000_p95"],
            "radiance_rel_mean": err["radiance_rel_mean"]}
+    if "bands" in err:
+        row["bands"] = err["bands"]
     row.update(extra)
     return row
 
@@ -617,6 +635,7 @@ def run_benchmark(cfg: BenchConfig, knobs=None, scenes=None, log=print) -> dict:
         ref_wl = ref["wavelengths_nm"]
         mask = sky_mask(cam, elev)
         weights = np.where(mask, cam.pixel_solid_angles(), 0.0)
+        elevation_deg = np.degrees(np.arcsin(np.clip(dirs[..., 2], -1.0, 1.0)))
         from skymodel.render.image_io import auto_exposure_luminance
 
         ref_img = ref["cam1"]
@@ -632,7 +651,7 @@ def run_benchmark(cfg: BenchConfig, knobs=None, scenes=None, log=print) -> dict:
                     (rad, _, info), t_med, n_rep = _timed(
                         lambda: render_directions(prof, settings, elev, flat), cfg.repeat)
                     rad = rad.reshape(dirs.shape[:-1] + (-1,))
-                    err = errors(rad, prof.wavelengths_nm, ref_img, ref_wl, weights, ref_avg)
+                    err = errors(rad, prof.wavelengths_nm, ref_img, ref_wl, weights, ref_avg, elevation_deg)
                     done[key] = (t_med, n_rep, info, err)
                 t_med, n_rep, info, err = done[key]
                 sd = dict(_settings_dict(settings), n_wavelengths=int(prof.n_wavelengths),

@@ -70,15 +70,20 @@ def presets_table(result: dict) -> str:
 
 
 def knob_table(result: dict, scene: str) -> str:
-    lines = ["| knob | value | time (s) | CPU (s) | mean rel. error | RMS | max | ΔE00 mean | ΔE00 p95 | orders "
-             "| load |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    """One scene's knob rows; ``ΔE00 0–10°`` is the mean over the horizon band (view elevations
+    0–10°, the band the planner prices for cameras that see the horizon; — in rows measured
+    before the bands were)."""
+    lines = ["| knob | value | time (s) | CPU (s) | mean rel. error | RMS | max | ΔE00 mean | ΔE00 p95 | ΔE00 0–10° "
+             "| orders | load |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in result["rows"]:
         if r["scene"] != scene or r["knob"] == "preset":
             continue
+        horizon = (r.get("bands") or {}).get("horizon", {}).get("de2000_mean")
         lines.append(f"| {r['knob']} | {r['value']} | {_num(r['time_s'])} | {_num(r.get('cpu_s'))} | "
                      f"{_pct(r.get('radiance_rel_mean'))} | "
                      f"{_pct(r['radiance_rel_rms'])} | {_pct(r['radiance_rel_max'])} | {_num(r['de2000_mean'])} | "
-                     f"{_num(r['de2000_p95'])} | {r.get('orders_used', '—')} | {_num(r.get('load_avg_1m'), '{:.1f}')} |")
+                     f"{_num(r['de2000_p95'])} | {_num(horizon)} | {r.get('orders_used', '—')} | "
+                     f"{_num(r.get('load_avg_1m'), '{:.1f}')} |")
     return "\n".join(lines)
 
 
