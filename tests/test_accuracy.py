@@ -379,6 +379,30 @@ def test_a_preset_refresh_keeps_every_other_row_and_says_when_each_was_measured(
         [r["time_s"] for r in quick["rows"] if r["knob"] == "orders"]
     assert all(r["time_s"] == 0.5 for r in merged["rows"] if r["knob"] == "preset")
     assert accuracy.row_date(merged, "noon", "orders") == "2026-01-01T00:00:00Z"
+    # both earlier runs still hold rows (orders; the presets' run none: replaced, dropped)
+    assert [r["date"] for r in merged["partial_runs"]] == ["2026-01-01T00:00:00Z", "2026-02-01T00:00:00Z"]
+
+
+def test_a_table_remeasured_row_by_row_in_another_atmosphere_becomes_that_atmospheres():
+    """Runs whose rows were all replaced leave the table's list of runs, and once every row
+    was measured again in another atmosphere the table says that atmosphere is its own."""
+    def part(knobs, date, atmosphere):
+        rows = [{"scene": "noon", "knob": k, "value": 1, "time_s": 1.0, "date": date} for k in knobs]
+        return {"config": "quick", "camera": {"width": 32}, "scenes": {"noon": {}}, "rows": rows, "presets": {},
+                "machine": "m", "date": date, "load_avg_end": [0.0], "reference_settings": {},
+                "baseline_settings": {}, "atmosphere": atmosphere, "total_s": 10.0,
+                "command": "skymodel bench accuracy --knobs " + ",".join(knobs)}
+
+    old = part(["orders", "layers"], "2026-01-01T00:00:00Z", {"aerosol_model": "opac"})
+    old["partial_runs"] = [{"command": old["command"], "date": old["date"], "total_s": 10.0}]
+    paper = {"aerosol_model": "guimera2018"}
+    half = accuracy.merge_results(old, part(["orders"], "2026-02-01T00:00:00Z", paper))
+    assert half["atmosphere"] == {"aerosol_model": "opac"}  # the layers row is still the old model's
+    assert [r.get("atmosphere") for r in half["partial_runs"]] == [None, paper]
+    full = accuracy.merge_results(half, part(["layers"], "2026-03-01T00:00:00Z", paper))
+    assert full["atmosphere"] == paper
+    assert [r["date"] for r in full["partial_runs"]] == ["2026-02-01T00:00:00Z", "2026-03-01T00:00:00Z"]
+    assert all("atmosphere" not in r for r in full["partial_runs"]) and full["total_s"] == 20.0
 
 
 def test_cli_merges_parts_measured_in_parallel(quick, tmp_path):

@@ -804,6 +804,26 @@ def merge_results(old: dict, new: dict) -> dict:
         run["atmosphere"] = new["atmosphere"]
     out["partial_runs"] = list(old.get("partial_runs", [])) + [run]
     out["command"] = old["command"]
+    return _prune_runs(out)
+
+
+def _prune_runs(table: dict) -> dict:
+    """``table`` with only the ``partial_runs`` whose rows or presets it still holds (a run
+    whose every row a later one replaced is dropped, with its time) and, when every row and
+    preset left was measured in one atmosphere other than the table's, that atmosphere as the
+    table's (a table first measured in another model and since re-measured row by row)."""
+    dates = [r.get("date") for r in table.get("rows", [])]
+    dates += [v.get("date") for per in table.get("presets", {}).values() for v in per.values()]
+    runs = [run for run in table.get("partial_runs", []) if run.get("date") in set(dates)]
+    if not runs:
+        return table
+    by_date = {run["date"]: run for run in runs}
+    atmospheres = [by_date.get(d, {}).get("atmosphere") for d in dates]
+    out = dict(table, total_s=sum(float(run.get("total_s", 0.0)) for run in runs))
+    if atmospheres and atmospheres[0] is not None and all(a == atmospheres[0] for a in atmospheres):
+        out["atmosphere"] = atmospheres[0]
+        runs = [{k: v for k, v in run.items() if k != "atmosphere"} for run in runs]
+    out["partial_runs"] = runs
     return out
 
 
