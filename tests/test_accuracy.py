@@ -379,7 +379,7 @@ def test_a_preset_refresh_keeps_every_other_row_and_says_when_each_was_measured(
         [r["time_s"] for r in quick["rows"] if r["knob"] == "orders"]
     assert all(r["time_s"] == 0.5 for r in merged["rows"] if r["knob"] == "preset")
     assert accuracy.row_date(merged, "noon", "orders") == "2026-01-01T00:00:00Z"
-    # both earlier runs still hold rows (orders; the presets' run none: replaced, dropped)
+    # the orders' run still holds rows and stays listed; the earlier presets' run holds none: dropped
     assert [r["date"] for r in merged["partial_runs"]] == ["2026-01-01T00:00:00Z", "2026-02-01T00:00:00Z"]
 
 
