@@ -1,4 +1,5 @@
-"""Planet geometry constants and the altitude grid (metres).
+"""Planet geometry constants and the altitude grid (metres); the view-elevation bands the
+measured error tables report by.
 
 Spherical Earth of radius 6360 km (the value of Bruneton & Neyret 2008 and of the
 paper this project follows), atmosphere up to 100 km (the Karman line).

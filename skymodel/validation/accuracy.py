@@ -814,7 +814,8 @@ def _prune_runs(table: dict) -> dict:
     table's (a table first measured in another model and since re-measured row by row)."""
     dates = [r.get("date") for r in table.get("rows", [])]
     dates += [v.get("date") for per in table.get("presets", {}).values() for v in per.values()]
-    runs = [run for run in table.get("partial_runs", []) if run.get("date") in set(dates)]
+    held = set(dates)
+    runs = [run for run in table.get("partial_runs", []) if run.get("date") in held]
     if not runs:
         return table
     by_date = {run["date"]: run for run in runs}
