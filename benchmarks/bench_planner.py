@@ -54,6 +54,7 @@ from dataclasses import replace
 import numpy as np
 
 from skymodel.geometry import VIEW_BANDS_DEG, view_band_masks
+from skymodel.validation.lighting import horizontal_irradiance, lighting_errors, reinhard_de2000
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
@@ -76,24 +77,6 @@ MONTH = 6
 
 
 # --------------------------------------------------------------------------- metrics
-
-
-def _lab(xyz_over_white):
-    import colour
-
-    d65 = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
-    return colour.XYZ_to_Lab(xyz_over_white, d65)
-
-
-def _de2000(xyz_a, xyz_b, white_y):
-    """CIEDE2000 between two XYZ arrays (..., 3) after the exposure and Reinhard map."""
-    import colour
-
-    def tone(xyz):
-        x = np.asarray(xyz, float) / white_y
-        return x / (1.0 + np.maximum(x[..., 1:2], 0.0))
-
-    return np.asarray(colour.delta_E(_lab(tone(xyz_a)), _lab(tone(xyz_b)), method="CIE 2000"), float)
 
 
 def _weighted_stats(values, weights):
@@ -129,7 +112,7 @@ class Reference:
 
         w = self.w if wavelengths_nm is None else cmf_weights(wavelengths_nm)
         xyz = radiance @ w
-        de = _de2000(xyz, self.xyz, self.white_y)
+        de = reinhard_de2000(xyz, self.xyz, self.white_y)
         with np.errstate(divide="ignore", invalid="ignore"):
             rel = np.abs(xyz[:, 1] - self.xyz[:, 1]) / np.maximum(self.xyz[:, 1], 1e-30)
         out = {"sky": {}}
@@ -139,21 +122,9 @@ class Reference:
             out["sky"][band] = {"de2000_mean": round(de_mean, 4), "de2000_p95": round(de_p95, 4),
                                 "radiance_rel_mean": round(rel_mean, 5), "radiance_rel_p95": round(rel_p95, 5)}
         e_h = horizontal_irradiance(radiance, self.dirs, self.omega, sun_irradiance, sun_elevation_deg)
-        exyz = e_h @ w
-        y_ref = max(float(self.e_h_xyz[1]), 1e-30)
-        out["lighting"] = {
-            "illuminance_rel": round(abs(float(exyz[1]) - y_ref) / y_ref, 5),
-            "de2000": round(float(_de2000(exyz, self.e_h_xyz, y_ref)), 4),
-        }
+        light = lighting_errors(e_h @ w, self.e_h_xyz)
+        out["lighting"] = {"illuminance_rel": round(light["illuminance_rel"], 5), "de2000": round(light["de2000"], 4)}
         return out
-
-
-def horizontal_irradiance(radiance, directions, omega, sun_irradiance, sun_elevation_deg):
-    """Spectral irradiance (W m^-2 nm^-1) on a horizontal surface: sky + direct sun."""
-    cz = directions[:, 2]
-    up = cz > 0
-    sky = (radiance[up] * (cz[up] * omega[up])[:, None]).sum(axis=0)
-    return sky + sun_irradiance * max(np.sin(np.radians(sun_elevation_deg)), 0.0)
 
 
 # --------------------------------------------------------------------------- renders
@@ -222,7 +193,7 @@ def aerial_perspective(profile, ref_radiance_fn, e_h, w, sun_elevation_deg):
         t_d = np.exp(-np.array([np.interp(dist, s, tau[:, k]) for k in range(tau.shape[1])]))
         l_path = l_hor * ((1.0 - t_d) / np.maximum(1.0 - t_inf, 1e-12))[None, :]
         seen = l_obj[None, :] * t_d[None, :] + l_path
-        de = _de2000(np.broadcast_to(l_obj @ w, (3, 3)), seen @ w, white_y)
+        de = reinhard_de2000(np.broadcast_to(l_obj @ w, (3, 3)), seen @ w, white_y)
         y_seen = seen @ w[:, 1]
         rel = np.abs(float(l_obj @ w[:, 1]) - y_seen) / np.maximum(y_seen, 1e-30)
         rows.append({"distance_m": dist, "de2000_mean": round(float(de.mean()), 4),

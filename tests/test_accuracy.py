@@ -163,6 +163,38 @@ def test_quick_run_rows_carry_their_errors_by_view_band(quick):
     assert least <= row["de2000_mean"] <= worst
 
 
+def test_quick_run_rows_carry_their_error_as_lighting(quick):
+    """Every knob row but the Monte Carlo's, and every preset, carries the error of the light on
+    a horizontal surface; single scattering loses light, which shows as an illuminance error of
+    the same sign as its radiance error, and the sky's colour as a colour difference of the light."""
+    for r in quick["rows"]:
+        if r["knob"] == "mc_samples":
+            assert "lighting" not in r
+            continue
+        light = r["lighting"]
+        assert set(light) == {"illuminance_rel", "de2000"}
+        assert all(np.isfinite(v) and v >= 0.0 for v in light.values())
+    one, conv = _row(quick, "orders", 1), _row(quick, "orders", "tolerance")
+    assert one["lighting"]["illuminance_rel"] > 10 * conv["lighting"]["illuminance_rel"]
+    assert one["lighting"]["de2000"] > 10 * conv["lighting"]["de2000"]
+    # the reference preset is the reference: no error as lighting either
+    assert quick["presets"]["reference"]["noon"]["lighting"]["illuminance_rel"] == pytest.approx(0.0, abs=1e-12)
+    assert quick["presets"]["final"]["noon"]["lighting"]["illuminance_rel"] > 0.0
+
+
+def test_lighting_of_the_rgb_shortcut_goes_through_its_own_colours():
+    """The irradiance's colour of a 3-wavelength sky is read as its images are (the RGB shortcut):
+    the top-of-atmosphere sun at the three wavelengths has the full solar spectrum's XYZ."""
+    from skymodel.colorimetry import spectral_to_xyz
+
+    wl3 = np.array(sorted(accuracy.RGB3_WAVELENGTHS_NM))
+    e3 = accuracy.base_profile(wl3).solar_irradiance
+    full = accuracy.base_profile(default_wavelengths())
+    assert np.allclose(accuracy.xyz_of(e3, wl3), spectral_to_xyz(full.solar_irradiance, full.wavelengths_nm))
+    assert np.allclose(accuracy.xyz_of(full.solar_irradiance, full.wavelengths_nm),
+                       spectral_to_xyz(full.solar_irradiance, full.wavelengths_nm))
+
+
 def test_band_matrix_averages_the_reference_over_each_band():
     fine, coarse = default_wavelengths(5.0), default_wavelengths(10.0)
     assert np.allclose(accuracy.band_matrix(fine, fine), np.eye(fine.size))

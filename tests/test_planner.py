@@ -256,6 +256,7 @@ def test_knob_errors_are_those_of_the_bands_the_cameras_see(effects, accuracy):
 
     banded = copy.deepcopy(accuracy)
     for r in banded["rows"]:
+        r.pop("lighting", None)  # the whole sky's error stands in for the light (rows before 2026-11-29)
         if r["knob"] == "wavelengths" and r["value"] == 11:
             r["bands"] = {"horizon": {"de2000_mean": r["de2000_mean"] + 3.0},
                           "low": {"de2000_mean": r["de2000_mean"]}, "high": {"de2000_mean": 0.0}}
@@ -274,11 +275,38 @@ def test_knob_errors_are_those_of_the_bands_the_cameras_see(effects, accuracy):
     for name, scene in (("horizon", sees_horizon), ("up", looks_up), ("lighting", lighting)):
         p = plan(scene, effects=effects, accuracy=banded)
         ctx = decisions._Planning(scene, {}, *decisions.read_tables(effects, banded), unit="dE2000",
-                                  acc_metric="de2000_mean", t_ref=1.0, where="sky")
+                                  acc_metric="de2000_mean", light_metric="de2000", t_ref=1.0, where="sky")
         steps[name] = decisions.spectral_step_options(ctx)[40.0][0]
         assert p["spectral_resolution"].value != 40.0 or steps[name] <= 0.1 * scene.tolerance
     assert steps["horizon"] == pytest.approx(whole + 3.0)
     assert steps["up"] == pytest.approx(whole) and steps["lighting"] == pytest.approx(whole)
+
+
+def test_knob_errors_as_lighting_are_the_lights_not_the_whole_skys(effects, accuracy):
+    """Where a knob row carries its error as lighting (the irradiance on a horizontal surface),
+    a sky seen only as lighting is priced at that error, not at the whole sky's image error; a
+    camera that sees the horizon pays the worse of the light's and the horizon band's; a plan
+    for lighting takes a coarse grid that the whole sky's error would have refused."""
+    from skymodel.planner.tables import _AccuracyTable
+
+    lit = copy.deepcopy(accuracy)
+    for r in lit["rows"]:
+        if r["knob"] == "wavelengths":
+            r["de2000_mean"] = 5.0 if r["value"] != 81 else 0.0  # every coarse grid far off in the image
+            r["radiance_rel_rms"] = 0.5 if r["value"] != 81 else 0.0
+            r["lighting"] = {"de2000": 0.01 if r["value"] != 81 else 0.0, "illuminance_rel": 0.001}
+            r["bands"] = {"horizon": {"de2000_mean": 7.0, "radiance_rel_rms": 0.7},
+                          "high": {"de2000_mean": 0.02, "radiance_rel_rms": 0.002}}
+    table = _AccuracyTable(lit)
+    assert table.knob("wavelengths", 20.0, "de2000_mean", [], "de2000")[11][0] == pytest.approx(0.01)
+    assert table.knob("wavelengths", 20.0, "de2000_mean", [])[11][0] == pytest.approx(5.0)  # no light metric asked
+    assert table.knob("wavelengths", 20.0, "de2000_mean", ["high"], "de2000")[11][0] == pytest.approx(0.02)
+    assert table.knob("wavelengths", 20.0, "de2000_mean", ["horizon", "high"], "de2000")[11][0] == pytest.approx(7.0)
+    assert table.knob("wavelengths", 20.0, "radiance_rel_rms", [], "illuminance_rel")[11][0] == pytest.approx(0.001)
+    lighting = landscape(sun_elevation_deg=20.0, farthest_object_m=0.0, sky_visible=False)
+    seen = landscape(sun_elevation_deg=20.0, farthest_object_m=0.0)
+    assert plan(lighting, effects=effects, accuracy=lit).wavelength_step_nm == 40.0
+    assert plan(seen, effects=effects, accuracy=lit).wavelength_step_nm < 40.0
 
 
 def test_the_accuracy_table_in_presets_is_read_by_default(effects):

@@ -274,8 +274,9 @@ def check_overrides(overrides) -> dict:
 class _Planning:
     """What every step reads: the scene, the user's overrides, the tables and the
     scene's units (``unit`` names the tolerance in reasons, ``acc_metric`` the accuracy
-    table's column), the reference render's time ``t_ref`` (s) at the sun elevation,
-    and ``where`` the sky is used ("sky and lighting" or "lighting")."""
+    table's column for the sky seen, ``light_metric`` its lighting entry's), the reference
+    render's time ``t_ref`` (s) at the sun elevation, and ``where`` the sky is used ("sky
+    and lighting" or "lighting")."""
 
     scene: SceneDescription
     forced: dict
@@ -283,6 +284,7 @@ class _Planning:
     acc: _AccuracyTable | None
     unit: str
     acc_metric: str
+    light_metric: str
     t_ref: float
     where: str
 
@@ -298,6 +300,11 @@ class _Planning:
     def bands(self) -> list[str]:
         """The view-elevation bands the cameras see (none when the sky is only lighting)."""
         return visible_bands(self.scene)
+
+    def acc_knob(self, knob) -> dict:
+        """The accuracy table's {value: (error, time_s)} of ``knob`` for this scene (its
+        sun, the bands its cameras see, the sky as its lighting)."""
+        return self.acc.knob(knob, self.el, self.acc_metric, self.bands, self.light_metric)
 
 
 def read_tables(effects, accuracy) -> tuple[_EffectTable, _AccuracyTable | None]:
@@ -387,7 +394,7 @@ def scattering_order_options(ctx: _Planning) -> dict:
     orders = {int(v): (eff.error(n, el, ctx.scene), eff.time(n, el), f"effects.json {n}")
               for v, n in eff.knob_rows("orders_").items()}
     if acc is not None:
-        for v, (e, _) in acc.knob("orders", el, ctx.acc_metric, ctx.bands).items():
+        for v, (e, _) in ctx.acc_knob("orders").items():
             if isinstance(v, (int, float)) and float(v).is_integer():
                 ratio = acc.time_ratio("orders", v, "tolerance")
                 orders.setdefault(int(v), (e, t_ref * ratio if ratio else None, f"measured.json orders={v}"))
@@ -440,7 +447,7 @@ def spectral_step_options(ctx: _Planning) -> dict:
     for v, n in eff.knob_rows("wavelength_step_").items():
         steps[float(v)] = (eff.error(n, el, ctx.scene), eff.time(n, el), f"effects.json {n}")
     if acc is not None:
-        for v, (e, _) in acc.knob("wavelengths", el, ctx.acc_metric, ctx.bands).items():
+        for v, (e, _) in ctx.acc_knob("wavelengths").items():
             if v in _WL_COUNT_STEP:
                 ratio = acc.time_ratio("wavelengths", v, 81)
                 steps[_WL_COUNT_STEP[v]] = (e, t_ref * ratio if ratio else None, f"measured.json wavelengths={v}")
@@ -507,7 +514,7 @@ def decide_volume_layers(ctx: _Planning, ap_err: float) -> Decision:
     layers = {int(v): (eff.error(n, el, ctx.scene), eff.time(n, el), f"effects.json {n}")
               for v, n in eff.knob_rows("layers_").items()}
     if acc is not None:
-        for v, (e, t) in acc.knob("layers", el, ctx.acc_metric, ctx.bands).items():
+        for v, (e, t) in ctx.acc_knob("layers").items():
             if isinstance(v, (int, float)) and float(v).is_integer() and int(v) <= MAX_LAYERS:
                 layers[int(v)] = (e, t, f"measured.json layers={v}")
     floor = TWILIGHT_MIN_LAYERS if el < 0 else 1
@@ -659,6 +666,7 @@ def plan(scene: SceneDescription, effects=EFFECTS_PATH, accuracy=ACCURACY_PATH, 
     de2000 = scene.tolerance_kind == "de2000"
     ctx = _Planning(scene, forced, eff, acc, unit="dE2000" if de2000 else "relative luminance error",
                     acc_metric="de2000_mean" if de2000 else "radiance_rel_rms",
+                    light_metric="de2000" if de2000 else "illuminance_rel",
                     t_ref=eff.time("reference", scene.sun_elevation_deg),
                     where="sky and lighting" if scene.sky_visible else "lighting")
     made: list[Decision] = []

@@ -7,8 +7,8 @@
   render's time (:class:`_EffectTable`);
 * ``skymodel/data/presets/accuracy/measured.json`` (the renderer's accuracy benchmark),
   optional: its knob rows (wavelengths, orders, layers) against its own converged
-  reference, for three scenes interpolated linearly in their sun elevation
-  (:class:`_AccuracyTable`).
+  reference, as lighting and by view-elevation band, for three scenes interpolated
+  linearly in their sun elevation (:class:`_AccuracyTable`).
 """
 
 from __future__ import annotations
@@ -147,11 +147,12 @@ class _AccuracyTable:
         y = np.array([float(values[s]) for s in names])
         return float(np.interp(el, x, y))
 
-    def knob(self, knob, el, metric, bands=()) -> dict:
-        """{value: (error, time_s)} of one knob, interpolated to the sun elevation. The
-        error is the whole sky's ``metric`` (the stand-in for the sky as lighting) or,
-        where a row has it (``bands``, measured since 2026-11-29), the worse of that and
-        the view-elevation ``bands`` the cameras see, as the effect table's errors are."""
+    def knob(self, knob, el, metric, bands=(), light_metric=None) -> dict:
+        """{value: (error, time_s)} of one knob, interpolated to the sun elevation: the
+        worst of the row's error as lighting (its ``lighting`` entry's ``light_metric``;
+        rows measured without it: the whole sky's ``metric``, the stand-in) and its
+        ``metric`` in the view-elevation ``bands`` the cameras see, as the effect table's
+        errors are (:func:`_row_error`)."""
         by_value: dict = {}
         for r in self.table.get("rows", []):
             if r.get("knob") != knob:
@@ -159,7 +160,7 @@ class _AccuracyTable:
             by_value.setdefault(r["value"], {})[r["scene"]] = r
         out = {}
         for value, per_scene in by_value.items():
-            err = self._interp(el, {s: _row_error(r, metric, bands) for s, r in per_scene.items()
+            err = self._interp(el, {s: _row_error(r, metric, bands, light_metric) for s, r in per_scene.items()
                                     if r.get(metric) is not None})
             t = self._interp(el, {s: r["time_s"] for s, r in per_scene.items() if r.get("time_s") is not None})
             if err is not None:
@@ -181,12 +182,15 @@ class _AccuracyTable:
         return self._interp(el, {s: v["time_s"] for s, v in p.items() if "time_s" in v})
 
 
-def _row_error(row: dict, metric: str, bands) -> float:
-    """A knob row's error for cameras that see ``bands``: the worst of the whole sky's and
-    those bands' (rows measured without bands: the whole sky's)."""
+def _row_error(row: dict, metric: str, bands, light_metric=None) -> float:
+    """A knob row's error for a scene lit by the sky whose cameras see ``bands``: the worst
+    of its error as lighting (``row["lighting"][light_metric]``, the irradiance on a
+    horizontal surface, measured since 2026-11-29; rows without it: the whole sky's
+    ``metric``) and its ``metric`` in those bands (rows measured without bands: none)."""
+    light = (row.get("lighting") or {}).get(light_metric) if light_metric else None
     by_band = row.get("bands") or {}
-    return max([float(row[metric])] + [float(by_band[b][metric]) for b in bands
-                                       if b in by_band and by_band[b].get(metric) is not None])
+    return max([float(row[metric] if light is None else light)]
+               + [float(by_band[b][metric]) for b in bands if b in by_band and by_band[b].get(metric) is not None])
 
 
 def visible_bands(scene: SceneDescription) -> list[str]:

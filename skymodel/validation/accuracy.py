@@ -39,7 +39,11 @@ left out, each pixel weighted by its solid angle:
 * colour: both images to scene-linear Rec.709 (CIE 1931 2-degree observer), tone-mapped
   with :func:`skymodel.render.image_io.tonemap` at the *reference's* exposure, sRGB to
   CIELAB (D65), CIEDE2000 per pixel (``colour.delta_E(..., method="CIE 2000")``); mean
-  and 95th percentile.
+  and 95th percentile; the same per view-elevation band (``bands``);
+* lighting (``lighting``, every knob row but ``mc_samples``, and the presets): the
+  irradiance on a horizontal surface under the whole upper hemisphere and the sun, its
+  relative illuminance error and the CIEDE2000 of its colour against the reference's
+  (:mod:`skymodel.validation.lighting`, as the planner's effect table measures it).
 
 Times are wall-clock seconds of building the marcher and evaluating every pixel (median
 of repeats when a render takes under :data:`REPEAT_BELOW_S`), with the 1-minute load
@@ -65,6 +69,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from skymodel.errors import SkymodelInputError, check_choice
+from skymodel.validation.lighting import lighting_errors
 
 #: Scenes: name -> sun elevation in degrees (sun azimuth 180, observer on the ground).
 SCENES = {"noon": 60.0, "sunset5": 5.0, "twilight": -4.0}
@@ -264,6 +269,25 @@ def rgb3_to_rgb(radiance, wavelengths_nm):
     return out
 
 
+def xyz_of(radiance, wavelengths_nm):
+    """CIE XYZ of spectra on the last axis, through :func:`rgb_of` (so a 3-sample spectrum
+    goes through the RGB shortcut as its colours do; for a spectral grid the same as
+    :func:`skymodel.colorimetry.spectral_to_xyz`)."""
+    from skymodel.colorimetry import xyz_to_rgb_matrix
+
+    return rgb_of(radiance, wavelengths_nm) @ np.linalg.inv(xyz_to_rgb_matrix()).T
+
+
+def lighting_xyz(radiance, wavelengths_nm, directions, omega, sun_irradiance, sun_elevation_deg):
+    """XYZ (3,) of the irradiance on a horizontal surface under the sky ``radiance``
+    (..., n_wl) over ``directions`` (..., 3) with solid angles ``omega`` (...) and the sun
+    (:func:`skymodel.validation.lighting.horizontal_irradiance`)."""
+    from skymodel.validation.lighting import horizontal_irradiance
+
+    return xyz_of(horizontal_irradiance(radiance, directions, omega, sun_irradiance, sun_elevation_deg),
+                  wavelengths_nm)
+
+
 def _weighted_quantile(values, weights, q):
     order = np.argsort(values)
     v = values[order]
@@ -374,14 +398,17 @@ def _wavelengths_for(value):
 
 def render_directions(profile, settings, sun_elevation_deg, directions):
     """(radiance (N, n_wl) without the solar disc, seconds, marcher info): build the
-    marcher and evaluate ``directions``; the time covers both."""
+    marcher and evaluate ``directions``; the time covers both. The info holds
+    ``orders_used``, ``cpu_s`` and ``sun_irradiance`` (n_wl,; the direct beam at the
+    observer, W m^-2 nm^-1)."""
     from skymodel.render.marcher import SkyMarcher
 
     t0, c0 = time.perf_counter(), time.process_time()
     m = SkyMarcher(profile, sun_elevation_deg, SUN_AZIMUTH_DEG, 0.0, settings)
     res = m.radiance(directions)
     dt = time.perf_counter() - t0
-    return res.radiance, dt, {"orders_used": int(m.field.orders), "cpu_s": time.process_time() - c0}
+    return res.radiance, dt, {"orders_used": int(m.field.orders), "cpu_s": time.process_time() - c0,
+                              "sun_irradiance": np.asarray(res.sun_irradiance, float)}
 
 
 def _timed(fn, repeat: bool):
@@ -451,7 +478,8 @@ def render_job(job: dict) -> dict:
     for a clean peak-memory figure): time the marcher build, the pixels of the first
     camera and the solar disc (what :func:`skymodel.render.sky.render_sky` does); then,
     untimed, radiance for the other cameras and the Monte Carlo directions. Sky radiance
-    without the disc is saved to ``job["out"]`` (npz)."""
+    without the disc and the direct sun's irradiance (``sun_irradiance``) are saved to
+    ``job["out"]`` (npz)."""
     from skymodel import sun as sun_module
     from skymodel.render.marcher import SkyMarcher
     from skymodel.render.sky import add_sun_disc
@@ -478,6 +506,7 @@ def render_job(job: dict) -> dict:
     if job.get("mc"):
         arrays["mc"] = m.radiance(mc_directions()).radiance
     arrays["wavelengths_nm"] = profile.wavelengths_nm
+    arrays["sun_irradiance"] = np.asarray(res.sun_irradiance, float)
     np.savez(job["out"], **arrays)
     rss_mb = peak_memory_mb()
     return {"time_s": elapsed, "cpu_s": cpu, "peak_memory_mb": rss_mb, "orders_used": int(m.field.orders),
@@ -520,7 +549,7 @@ def preset_run(cfg: BenchConfig, scene: str, preset: str, with_sweep_camera: boo
     cams = [(cfg.preset_width, cfg.preset_height)] + ([(cfg.width, cfg.height)] if with_sweep_camera else [])
     spec = {"settings": _settings_dict(settings), "sun_elevation_deg": SCENES[scene], "cameras": cams,
             "mc": bool(with_sweep_camera), "location": LOCATION, "month": MONTH,
-            "version": 1 if preset == "__reference__" else 2, "code": code_digest()}
+            "version": 3 if preset == "__reference__" else 4, "code": code_digest()}
     key = _key(spec)
     d = cache_dir()
     os.makedirs(d, exist_ok=True)
@@ -603,8 +632,9 @@ def _row(scene, knob, value, settings_dict, time_s, err, **extra):
            "radiance_rel_rms": err["radiance_rel_rms"], "radiance_rel_max": err["radiance_rel_max"],
            "de2000_mean": err["de2000_mean"], "de2000_p95": err["de2000_p95"],
            "radiance_rel_mean": err["radiance_rel_mean"]}
-    if "bands" in err:
-        row["bands"] = err["bands"]
+    for k in ("bands", "lighting"):
+        if k in err:
+            row[k] = err[k]
     row.update(extra)
     return row
 
@@ -640,6 +670,8 @@ def run_benchmark(cfg: BenchConfig, knobs=None, scenes=None, log=print) -> dict:
 
         ref_img = ref["cam1"]
         ref_avg = auto_exposure_luminance(rgb_of(ref_img, ref_wl), mask)
+        omega = cam.pixel_solid_angles()
+        light_ref = lighting_xyz(ref_img, ref_wl, dirs, omega, ref["sun_irradiance"], elev)
         done = {}  # (medium, settings) -> measurement: the baseline is rendered once per scene
         for knob in knobs:
             if knob in ("preset", "mc_samples"):
@@ -651,7 +683,10 @@ def run_benchmark(cfg: BenchConfig, knobs=None, scenes=None, log=print) -> dict:
                     (rad, _, info), t_med, n_rep = _timed(
                         lambda: render_directions(prof, settings, elev, flat), cfg.repeat)
                     rad = rad.reshape(dirs.shape[:-1] + (-1,))
+                    sun = info.pop("sun_irradiance")
                     err = errors(rad, prof.wavelengths_nm, ref_img, ref_wl, weights, ref_avg, elevation_deg)
+                    err["lighting"] = lighting_errors(
+                        lighting_xyz(rad, prof.wavelengths_nm, dirs, omega, sun, elev), light_ref)
                     done[key] = (t_med, n_rep, info, err)
                 t_med, n_rep, info, err = done[key]
                 sd = dict(_settings_dict(settings), n_wavelengths=int(prof.n_wavelengths),
@@ -689,16 +724,21 @@ def run_benchmark(cfg: BenchConfig, knobs=None, scenes=None, log=print) -> dict:
             w_p = np.where(mask_p, cam_p.pixel_solid_angles(), 0.0)
             ref_p = ref["cam0"]
             avg_p = auto_exposure_luminance(rgb_of(ref_p, ref_wl), mask_p)
+            dirs_p, omega_p = cam_p.directions()[0], cam_p.pixel_solid_angles()
+            light_ref_p = lighting_xyz(ref_p, ref_wl, dirs_p, omega_p, ref["sun_irradiance"], elev)
             for name, settings in cfg.presets.items():
                 if settings == cfg.reference:
-                    meta, arr = ref_meta, {"cam0": ref_p, "wavelengths_nm": ref_wl}
+                    meta, arr = ref_meta, {"cam0": ref_p, "wavelengths_nm": ref_wl, "sun_irradiance": ref["sun_irradiance"]}
                 else:
                     meta, arr = preset_run(cfg, scene, name, False, log)
                 err = errors(arr["cam0"], arr["wavelengths_nm"], ref_p, ref_wl, w_p, avg_p)
+                err["lighting"] = lighting_errors(
+                    lighting_xyz(arr["cam0"], arr["wavelengths_nm"], dirs_p, omega_p, arr["sun_irradiance"], elev),
+                    light_ref_p)
                 entry = {"time_s": meta["time_s"], "radiance_rel_mean": err["radiance_rel_mean"],
                          "radiance_rel_rms": err["radiance_rel_rms"], "radiance_rel_max": err["radiance_rel_max"],
                          "de2000_mean": err["de2000_mean"], "de2000_p95": err["de2000_p95"],
-                         "peak_memory_mb": meta["peak_memory_mb"], "width": cfg.preset_width,
+                         "lighting": err["lighting"], "peak_memory_mb": meta["peak_memory_mb"], "width": cfg.preset_width,
                          "height": cfg.preset_height, "orders_used": meta["orders_used"], "cpu_s": meta.get("cpu_s"),
                          "load_avg_1m": meta["load_avg_1m"]}
                 presets[name][scene] = entry

@@ -42,10 +42,16 @@ def _num(x, fmt="{:.3g}"):
     return "—" if x is None or not np.isfinite(x) else fmt.format(x)
 
 
+def _light_cell(entry) -> str:
+    """A row's error as lighting (illuminance, CIEDE2000 of the light's colour), or —."""
+    light = entry.get("lighting")
+    return f"{_pct(light['illuminance_rel'])}, {_num(light['de2000'])}" if light else "—"
+
+
 def presets_table(result: dict) -> str:
     lines = ["| preset | scene | time (s) | CPU (s) | mean rel. error | RMS | max | ΔE00 mean | ΔE00 p95 "
-             "| peak memory (MiB) | orders | load (1 min) | target |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| light: illuminance, ΔE00 | peak memory (MiB) | orders | load (1 min) | target |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, per_scene in result.get("presets", {}).items():
         for scene, e in per_scene.items():
             tgt = TARGETS.get(name)
@@ -64,17 +70,20 @@ def presets_table(result: dict) -> str:
             lines.append(f"| {name} | {scene} | {_num(e['time_s'])} | {_num(e.get('cpu_s'))} | "
                          f"{_pct(e['radiance_rel_mean'])} | "
                          f"{_pct(e.get('radiance_rel_rms'))} | {_pct(e.get('radiance_rel_max'))} | "
-                         f"{_num(e['de2000_mean'])} | {_num(e['de2000_p95'])} | {_num(e['peak_memory_mb'], '{:.0f}')} | "
+                         f"{_num(e['de2000_mean'])} | {_num(e['de2000_p95'])} | {_light_cell(e)} | "
+                         f"{_num(e['peak_memory_mb'], '{:.0f}')} | "
                          f"{e.get('orders_used', '—')} | {_num(e.get('load_avg_1m'), '{:.1f}')} | {verdict} |")
     return "\n".join(lines)
 
 
 def knob_table(result: dict, scene: str) -> str:
     """One scene's knob rows; ``ΔE00 0–10°`` is the mean over the horizon band (view elevations
-    0–10°, the band the planner prices for cameras that see the horizon; — in rows measured
-    before the bands were)."""
+    0–10°, the band the planner prices for cameras that see the horizon), ``light`` the
+    error of the light on a horizontal surface (sky and sun: illuminance, CIEDE2000 of its
+    colour; what the planner prices for a sky seen only as lighting); — in rows measured
+    before these were."""
     lines = ["| knob | value | time (s) | CPU (s) | mean rel. error | RMS | max | ΔE00 mean | ΔE00 p95 | ΔE00 0–10° "
-             "| orders | load |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| light: illuminance, ΔE00 | orders | load |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in result["rows"]:
         if r["scene"] != scene or r["knob"] == "preset":
             continue
@@ -82,7 +91,7 @@ def knob_table(result: dict, scene: str) -> str:
         lines.append(f"| {r['knob']} | {r['value']} | {_num(r['time_s'])} | {_num(r.get('cpu_s'))} | "
                      f"{_pct(r.get('radiance_rel_mean'))} | "
                      f"{_pct(r['radiance_rel_rms'])} | {_pct(r['radiance_rel_max'])} | {_num(r['de2000_mean'])} | "
-                     f"{_num(r['de2000_p95'])} | {_num(horizon)} | {r.get('orders_used', '—')} | "
+                     f"{_num(r['de2000_p95'])} | {_num(horizon)} | {_light_cell(r)} | {r.get('orders_used', '—')} | "
                      f"{_num(r.get('load_avg_1m'), '{:.1f}')} |")
     return "\n".join(lines)
 
