@@ -12,7 +12,7 @@ Two modes:
     stores the table in ``skymodel/data/presets/planner/effects.json``.
 
 ``python benchmarks/bench_planner.py --proof [--write]`` (``--doc-only``: rewrite the doc from the JSON)
-    For the three example scenes of issue 5, plan with :func:`skymodel.planner.plan`,
+    For the three example scenes of issue 5 and a daylight study, plan with :func:`skymodel.planner.plan`,
     render the planned build and the everything-on build with the marcher, and report
     both times and the planned build's error against everything-on; ``--write`` stores
     the result in ``skymodel/data/presets/planner/proof.json`` and the tables in ``docs/planner.md``.
@@ -345,7 +345,9 @@ def measure_pixel_costs(widths_direct=(256, 512), widths_table=(1024, 2048, 4096
 
 def proof_scenes():
     """The three example scenes of issue 5 (the product shot also with a tight tolerance),
-    as the planner sees them; the tolerances are ours (the issue names none)."""
+    as the planner sees them, and a daylight study (the sky seen only as lighting: an
+    architect's interior or a building's facade, nothing farther than 50 m); the
+    tolerances are ours (the issue names none)."""
     from skymodel.planner import CameraView, SceneDescription
 
     return {
@@ -365,6 +367,10 @@ def proof_scenes():
             cameras=[CameraView(altitude_m=0.0, min_elevation_deg=0.0, max_elevation_deg=90.0, fov_deg=180.0)],
             sun_elevation_deg=-4.0, farthest_object_m=0.0, sky_visible=True, image_width=2048,
             image_height=1024, tolerance_kind="de2000", tolerance=2.0),
+        "daylight_study": SceneDescription(
+            cameras=[CameraView(altitude_m=1.7, view_directions=[(0.0, 1.0, 0.0)], fov_deg=70.0)],
+            sun_elevation_deg=30.0, farthest_object_m=50.0, sky_visible=False, image_width=1920,
+            image_height=1080, tolerance_kind="de2000", tolerance=1.0),
     }
 
 
@@ -564,8 +570,9 @@ def write_doc(meta):
         pred = ("The predicted error counts what the tables measure. The plans read `skymodel/data/presets/accuracy/measured.json` "
                 f"({acc.get('date')}): its `wavelengths` rows price the spectral grid against the 5 nm (81 "
                 "wavelengths) build, its `orders` rows add 5-8 orders and its `layers` rows replace 4, 8 and 16 "
-                "shells, each at the worse of its whole-sky error and its errors in the view-elevation bands the "
-                "cameras see (rows measured with bands; the effect table's rows are read the same way). Its errors "
+                "shells, each at the worse of its error as lighting (the light on a horizontal surface, sky and sun; "
+                "rows measured without it: the whole sky's error) and its errors in the view-elevation bands the "
+                "cameras see (none for a sky seen only as lighting; the effect table's rows are read the same way). Its errors "
                 "are taken against its own converged reference, so they include the accuracy "
                 "bench's baseline error ("
                 + ", ".join(f"{v:.2f} dE2000 with the sun at {k}°" for k, v in
@@ -648,7 +655,7 @@ def write_doc(meta):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--proof", action="store_true", help="render the three example scenes planned vs everything on")
+    ap.add_argument("--proof", action="store_true", help="render the example scenes (issue 5's and a daylight study) planned vs everything on")
     ap.add_argument("--write", action="store_true", help="write the results (presets/planner, docs/planner.md)")
     ap.add_argument("--width", type=int, default=64, help="equirectangular width of the effect table's renders")
     ap.add_argument("--step", type=float, default=10.0, help="wavelength step (nm) of the reference")
