@@ -54,6 +54,7 @@ from dataclasses import replace
 import numpy as np
 
 from skymodel.geometry import VIEW_BANDS_DEG, view_band_masks
+from skymodel.optics.shells import volume_shells
 from skymodel.validation.lighting import horizontal_irradiance, lighting_errors, reinhard_de2000
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -165,7 +166,8 @@ def variants(profile, settings):
         ("earth_shadow_off", profile, replace(settings, earth_shadow=False)),
     ]
     out += [(f"orders_{n}", profile, replace(settings, orders=n)) for n in (1, 2, 3, 4)]
-    out += [(f"layers_{n}", profile.layered(n_layers=n), settings) for n in (4, 8, 16, 24)]
+    # the shells the add-on builds (their edges: skymodel.optics.shells)
+    out += [(f"layers_{n}", volume_shells(profile, n), settings) for n in (4, 8, 16, 24)]
     return out
 
 
@@ -427,7 +429,7 @@ def run_proof(write: bool, width: int, repeats: int = REPEATS) -> int:
             wl = default_wavelengths(p.wavelength_step_nm)
             prof = p.apply_to_atmosphere(atm).optical_profile(wl)
             if p.n_layers:
-                prof = prof.layered(n_layers=p.n_layers)
+                prof = volume_shells(prof, p.n_layers)
             m = SkyMarcher(prof, el, 180.0, 0.0, p.march_settings(QUALITY["final"]))
             return m, m.radiance(dirs)
 
@@ -544,7 +546,7 @@ def write_doc(meta):
              f"Both builds rendered with the marcher on an equirectangular camera of {cam['width']}x{cam['height']} "
              "(a reduced size; the plan's angular-resolution decision is the width Blender gets). Everything on: "
              + meta["everything_on"] + ". Planned: the plan's spectral grid, orders, atmosphere (effects left out "
-             "removed: `Plan.apply_to_atmosphere`, as the add-on builds it) and, with shells, the layered profile. Times: the fastest of "
+             "removed: `Plan.apply_to_atmosphere`, as the add-on builds it) and, with shells, the add-on's shells (`skymodel.optics.shells.volume_shells`). Times: the fastest of "
              + str(meta.get("repeats", 2)) + " alternated runs of each build. Error: the planner's metric (mean "
              "CIEDE2000 of the tone-mapped sky over the view bands the cameras see, or of the light on a horizontal "
              "surface, whichever is larger) of the planned render against the everything-on render. The "

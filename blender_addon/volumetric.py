@@ -3,7 +3,7 @@
 Geometry
     The planet (radius R = 6360 km, the core's) is centred at (0, 0, -R): the scene origin
     is on the ground, +Z up, the camera near the origin. The layered profile of the core
-    (``OpticalProfile.layered`` on the edges of :func:`layer_edges`: equal shares of the
+    (``skymodel.optics.shells.volume_shells``, on the edges of its ``layer_edges``: equal shares of the
     column of ``extinction(550 nm) ** 0.3``, which keeps the sunlit upper air of twilight in
     thin layers; per-layer mean coefficients) becomes
 
@@ -73,6 +73,8 @@ from skymodel.colorimetry import cmf_weights, xyz_to_rgb_matrix
 from skymodel.errors import SkymodelInputError
 from skymodel.optics.phase_fit import fit_phase, hg
 from skymodel.optics.profile import LayeredProfile
+# the shells' edges and the twilight floor have one home in the core (the planner reads them too)
+from skymodel.optics.shells import EDGE_EXPONENT, TWILIGHT_MIN_LAYERS, layer_edges, volume_shells  # noqa: F401
 from skymodel.render.environment import environment_camera
 from skymodel.render.exposure import display_exposure
 from skymodel.render.sky import render_sky
@@ -250,41 +252,9 @@ def layer_volumes(edges_m) -> list:
     return out
 
 
-#: Layer edges split the column of ``extinction(550 nm) ** EDGE_EXPONENT`` in equal shares
-#: (:func:`layer_edges`). 1 would be equal optical depth (thin layers near the ground, one
-#: thick top layer); 0 equal altitude steps. See :func:`layer_edges` for why 0.3.
-EDGE_EXPONENT = 0.3
-#: Fewest layers that carry a sun below the horizon within 10 % (the layered marcher against
-#: the smooth profile, rural, June, sun -4 degrees: 8.9 % worst pixel at 16 layers, 30 % at 8;
-#: docs/blender.md "Volumetric twilight").
-TWILIGHT_MIN_LAYERS = 16
 #: Measured layering error in twilight (sun -4 degrees, rural, June, 64x32 sky above the horizon):
-#: layers -> (rms, worst pixel) relative luminance, with :data:`EDGE_EXPONENT` edges.
+#: layers -> (rms, worst pixel) relative luminance, with ``skymodel.optics.shells.EDGE_EXPONENT`` edges.
 TWILIGHT_LAYER_ERROR = {8: (0.137, 0.297), 16: (0.057, 0.089), 24: (0.033, 0.087)}
-
-
-def layer_edges(profile, n_layers: int, exponent: float = EDGE_EXPONENT) -> np.ndarray:
-    """Layer edges (m, ground to the top of the profile) with equal shares of the column of
-    ``extinction(550 nm) ** exponent``.
-
-    Why not equal optical depth (exponent 1, the core's ``layered(n_layers=)``): in twilight
-    only the air above the Earth's shadow is sunlit (about 15 km at the zenith with the sun
-    4 degrees down), and equal optical-depth edges give the top layer everything above
-    22 km (8 layers) as one uniform medium, which puts far too much sunlit air at 30-60 km:
-    the layered sky came out 4.6x too bright at the zenith at 8 layers, 1.9x at 24 and 1.35x
-    at 64 (marcher on the layers against the smooth profile, sun -4 degrees; the Cycles
-    volumes measured 6.8x, 1.7-2.3x and 1.28x, issue 21). A smaller exponent thins the upper
-    layers at the cost of thicker low ones: 0.3 keeps the daylight error of 8 layers (1.8 %
-    rms at sun 10 degrees against 2.1 %) and brings twilight to 14 % rms at 8 layers, 5.7 %
-    at 16 (docs/blender.md)."""
-    wl = profile.wavelengths_nm
-    j = int(np.argmin(np.abs(wl - 550.0)))
-    h = np.asarray(profile.altitudes_m, float)
-    w = np.maximum(np.asarray(profile.extinction)[:, j], 1e-30) ** float(exponent)
-    cum = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(h))])
-    edges = np.interp(np.linspace(0.0, cum[-1], int(n_layers) + 1), cum, h)
-    edges[0], edges[-1] = h[0], h[-1]
-    return np.maximum.accumulate(edges + np.arange(edges.size) * 1e-6)
 
 
 def twilight_warning(sun_elevation_deg: float, n_layers: int) -> str:
@@ -306,7 +276,7 @@ def volume_layers(sky, n_layers: int):
     and the spectral pieces the projection used."""
     wl = default_wavelengths(WAVELENGTH_STEP_NM)
     prof = sky.profile(wl)
-    lay = prof.layered(edges_m=layer_edges(prof, int(n_layers)))
+    lay = volume_shells(prof, int(n_layers))
     weights = rgb_weights(wl, prof.solar_irradiance)
     edges = np.asarray(lay.edges_m, float)
     ray = project(lay.rayleigh_scattering, weights)

@@ -12,7 +12,7 @@ benchmark measures what the product builds:
 * :func:`march_settings`: the marcher's scattering orders and Earth's shadow;
 * the plan's numerical choices are read from the plan itself:
   :attr:`~skymodel.planner.decisions.Plan.wavelength_step_nm`, ``n_layers`` (volume
-  shells, ``OpticalProfile.layered``), ``mode`` and ``environment_width``.
+  shells, :func:`skymodel.optics.shells.volume_shells`), ``mode`` and ``environment_width``.
 
 The planner does not import the renderer: the quality registry is read inside
 :func:`march_settings` only.

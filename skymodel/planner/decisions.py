@@ -37,6 +37,7 @@ import numpy as np
 
 from skymodel.errors import SkymodelInputError
 from skymodel.planner import apply
+from skymodel.optics.shells import TWILIGHT_MIN_LAYERS  # the add-on's floor below the horizon
 from skymodel.planner.scene import TOP_ALTITUDE_M, SceneDescription
 from skymodel.planner.tables import (_WL_COUNT_STEP, ACCURACY_PATH, EFFECTS_PATH, _AccuracyTable, _EffectTable,
                                      load_table, visible_bands)
@@ -85,10 +86,6 @@ ENV_FIXED_PER_TABLE = 2.2
 #: 15.5 s at 16 layers with 32 samples (time grows with the layers; 1.15e-4 s per pixel and
 #: sample at 8 layers). docs/planner.md.
 VOLUME_SECONDS_PER_PIXEL_SAMPLE_LAYER = 1.44e-5
-#: Below the horizon the volume shells need at least this many layers to carry the sunlit
-#: upper air within 10 % (the add-on's layer edges; measured at sun -4 degrees: 8.9 % worst
-#: pixel at 16 layers, 30 % at 8).
-TWILIGHT_MIN_LAYERS = 16
 
 #: The effects a plan decides, in the order a plan lists them.
 EFFECT_NAMES = ("multiple_scattering", "aerosols", "ozone", "earth_shadow", "ground_reflection", "sun_disc",

@@ -19,8 +19,9 @@ Each knob is varied on its own, the other knobs staying at the ``final`` preset:
   ``RGB_c = L(lambda_c) / E0(lambda_c) * RGB(E0)_c``;
 * ``orders``: highest scattering order 1..8, or ``tolerance`` (until an order adds less
   than the preset's ``order_tolerance``);
-* ``layers``: the medium as N piecewise-constant shells (:meth:`OpticalProfile.layered`)
-  or ``smooth``;
+* ``layers``: the medium as the N volume shells the add-on's Volumetric mode builds
+  (:func:`skymodel.optics.shells.volume_shells`: edges at equal shares of the column of
+  extinction^0.3; measured with equal optical-depth shells until 2026-11-29) or ``smooth``;
 * ``angular_grid``: every angular resolution of the marcher (the direction grid
   ``grid_zenith``/``grid_zenith_ground``/``grid_azimuth`` and the multiple-scattering
   tables ``table_mu``/``table_phi``/``table_mus``) scaled together by the value;
@@ -69,6 +70,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from skymodel.errors import SkymodelInputError, check_choice
+from skymodel.optics.shells import volume_shells
 from skymodel.validation.lighting import lighting_errors
 
 #: Scenes: name -> sun elevation in degrees (sun azimuth 180, observer on the ground).
@@ -600,7 +602,7 @@ def _variant(cfg: BenchConfig, knob, value):
         return base_profile(wl81), (replace(s, orders=None) if value == "tolerance" else replace(s, orders=int(value))), "wl81"
     if knob == "layers":
         p = base_profile(wl81)
-        return (p, s, "wl81") if value == "smooth" else (p.layered(int(value)), s, f"wl81-layers{int(value)}")
+        return (p, s, "wl81") if value == "smooth" else (volume_shells(p, int(value)), s, f"wl81-shells{int(value)}")
     if knob == "angular_grid":
         return base_profile(wl81), scale_angular(s, float(value)), "wl81"
     if knob == "phase":
