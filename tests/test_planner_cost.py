@@ -162,7 +162,7 @@ def test_accuracy_table_orders_are_timed_against_their_own_converged_row():
             v["time_s"] = 1.0  # far from the rows' times: must not enter the ratio
     eff, table = decisions.read_tables(load_table(EFFECTS_PATH), acc)
     s = scene(sun_elevation_deg=60.0, farthest_object_m=0.0, tolerance=1.0)
-    ctx = decisions._Planning(s, {}, eff, table, unit="dE2000", acc_metric="de2000_mean",
+    ctx = decisions._Planning(s, {}, eff, table, unit="dE2000", acc_metric="de2000_mean", light_metric="de2000",
                               t_ref=eff.time("reference", 60.0), where="sky and lighting")
     opts = decisions.scattering_order_options(ctx)
     for n in (5, 6, 7, 8):
