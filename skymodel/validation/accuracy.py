@@ -71,7 +71,7 @@ import numpy as np
 
 from skymodel.errors import SkymodelInputError, check_choice
 from skymodel.optics.shells import volume_shells
-from skymodel.validation.lighting import lighting_errors
+from skymodel.validation.lighting import horizontal_irradiance, lighting_errors
 
 #: Scenes: name -> sun elevation in degrees (sun azimuth 180, observer on the ground).
 SCENES = {"noon": 60.0, "sunset5": 5.0, "twilight": -4.0}
@@ -284,8 +284,6 @@ def lighting_xyz(radiance, wavelengths_nm, directions, omega, sun_irradiance, su
     """XYZ (3,) of the irradiance on a horizontal surface under the sky ``radiance``
     (..., n_wl) over ``directions`` (..., 3) with solid angles ``omega`` (...) and the sun
     (:func:`skymodel.validation.lighting.horizontal_irradiance`)."""
-    from skymodel.validation.lighting import horizontal_irradiance
-
     return xyz_of(horizontal_irradiance(radiance, directions, omega, sun_irradiance, sun_elevation_deg),
                   wavelengths_nm)
 
