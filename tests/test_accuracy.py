@@ -489,6 +489,17 @@ def test_checked_in_measured_table_covers_every_knob_and_scene():
         # the presets are ordered in error: reference (0) < final < preview
         assert 0.0 < result["presets"]["final"][scene]["radiance_rel_mean"] < \
             result["presets"]["preview"][scene]["radiance_rel_mean"]
+    # the rows the planner reads carry the errors it prices: by view band and as lighting
+    for r in result["rows"]:
+        if r["knob"] in ("wavelengths", "orders", "layers"):
+            assert {"horizon", "low", "high"} <= set(r["bands"]) and set(r["lighting"]) == {"illuminance_rel", "de2000"}, r
+    # ... and the layers rows are the add-on's shells (skymodel.optics.shells): at twilight its floor of
+    # 16 carries the light within 1 dE2000 (shells of equal optical depth: 10.9, and 108 % of the illuminance)
+    from skymodel.optics.shells import TWILIGHT_MIN_LAYERS
+
+    floor = next(r for r in result["rows"] if r["scene"] == "twilight" and r["knob"] == "layers"
+                 and r["value"] == TWILIGHT_MIN_LAYERS)
+    assert floor["lighting"]["de2000"] < 1.0 and floor["lighting"]["illuminance_rel"] < 0.05
 
 
 def test_cache_key_changes_with_the_renderer(tmp_path, monkeypatch):

@@ -402,3 +402,19 @@ def test_marcher_switch_for_the_earths_shadow():
     np.testing.assert_allclose(out[30.0, False], out[30.0, True], rtol=1e-3)
     assert np.all(out[-5.0, False] >= out[-5.0, True] * (1 - 1e-9))
     assert np.any(out[-5.0, False] > out[-5.0, True] * 1.05)
+
+
+def test_the_effect_tables_shells_are_the_add_ons(effects):
+    """The effect table's layers_N rows are measured on the shells the add-on builds
+    (skymodel.optics.shells): with the sun 4 degrees down its twilight floor of layers carries
+    the light within 1 dE2000 and the high sky within 2 (shells of equal optical depth, measured
+    until 2026-11-29: 11.1 and 11.9), so a twilight scene with near objects plans within its tolerance."""
+    from skymodel.optics.shells import TWILIGHT_MIN_LAYERS
+
+    row = next(r for r in effects["rows"] if r["sun_elevation_deg"] == -4.0)
+    shells = row["effects"][f"layers_{TWILIGHT_MIN_LAYERS}"]
+    assert shells["lighting"]["de2000"] < 1.0 and shells["sky"]["high"]["de2000_mean"] < 2.0
+    near = SceneDescription(cameras=[CameraView(altitude_m=1.7, view_directions=[(0.0, 1.0, 0.0)], fov_deg=60.0)],
+                            sun_elevation_deg=-4.0, farthest_object_m=30.0, sky_visible=False, tolerance=2.0)
+    p = plan(near, effects=effects)
+    assert p.n_layers is not None and p.n_layers >= TWILIGHT_MIN_LAYERS and p.within_tolerance
