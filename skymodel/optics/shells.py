@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from skymodel.errors import SkymodelInputError
+
 #: Shell edges split the column of ``extinction(550 nm) ** EDGE_EXPONENT`` in equal shares
 #: (:func:`layer_edges`). 1 would be equal optical depth (thin layers near the ground, one
 #: thick top layer); 0 equal altitude steps. See :func:`layer_edges` for why 0.3.
@@ -53,8 +55,6 @@ def volume_shells(profile, n_layers: int):
     """``profile`` as ``n_layers`` shells on :func:`layer_edges` (a
     :class:`~skymodel.optics.profile.LayeredProfile`): the medium the add-on's Volumetric
     mode puts in Cycles (before its RGB projection)."""
-    from skymodel.errors import SkymodelInputError
-
     if isinstance(n_layers, bool) or not isinstance(n_layers, (int, np.integer)) or int(n_layers) < 1:
         raise SkymodelInputError("n_layers", n_layers, "an integer >= 1")
     return profile.layered(edges_m=layer_edges(profile, int(n_layers)))

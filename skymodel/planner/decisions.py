@@ -36,11 +36,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from skymodel.errors import SkymodelInputError
-from skymodel.planner import apply
 from skymodel.optics.shells import TWILIGHT_MIN_LAYERS  # the add-on's floor below the horizon
+from skymodel.planner import apply
 from skymodel.planner.scene import TOP_ALTITUDE_M, SceneDescription
-from skymodel.planner.tables import (_WL_COUNT_STEP, ACCURACY_PATH, EFFECTS_PATH, _AccuracyTable, _EffectTable,
-                                     load_table, visible_bands)
+from skymodel.planner.tables import (_METRIC, _WL_COUNT_STEP, ACCURACY_PATH, EFFECTS_PATH, _AccuracyTable,
+                                     _EffectTable, load_table, visible_bands)
 from skymodel.render.skyview import TABLE_MIN_PIXELS  # images this large resample the sky-view table
 
 #: Physical effects the planner may leave out, with the effect-table row that measures it.
@@ -663,7 +663,7 @@ def plan(scene: SceneDescription, effects=EFFECTS_PATH, accuracy=ACCURACY_PATH, 
     de2000 = scene.tolerance_kind == "de2000"
     ctx = _Planning(scene, forced, eff, acc, unit="dE2000" if de2000 else "relative luminance error",
                     acc_metric="de2000_mean" if de2000 else "radiance_rel_rms",
-                    light_metric="de2000" if de2000 else "illuminance_rel",
+                    light_metric=_METRIC[scene.tolerance_kind][1],  # the effect table's lighting key
                     t_ref=eff.time("reference", scene.sun_elevation_deg),
                     where="sky and lighting" if scene.sky_visible else "lighting")
     made: list[Decision] = []

@@ -664,13 +664,13 @@ def run_benchmark(cfg: BenchConfig, knobs=None, scenes=None, log=print) -> dict:
         ref_meta, ref = preset_run(cfg, scene, "__reference__", True, log)
         ref_wl = ref["wavelengths_nm"]
         mask = sky_mask(cam, elev)
-        weights = np.where(mask, cam.pixel_solid_angles(), 0.0)
+        omega = cam.pixel_solid_angles()
+        weights = np.where(mask, omega, 0.0)
         elevation_deg = np.degrees(np.arcsin(np.clip(dirs[..., 2], -1.0, 1.0)))
         from skymodel.render.image_io import auto_exposure_luminance
 
         ref_img = ref["cam1"]
         ref_avg = auto_exposure_luminance(rgb_of(ref_img, ref_wl), mask)
-        omega = cam.pixel_solid_angles()
         light_ref = lighting_xyz(ref_img, ref_wl, dirs, omega, ref["sun_irradiance"], elev)
         done = {}  # (medium, settings) -> measurement: the baseline is rendered once per scene
         for knob in knobs:
@@ -721,10 +721,10 @@ def run_benchmark(cfg: BenchConfig, knobs=None, scenes=None, log=print) -> dict:
                     f"(MC stderr {stderr_rel:.2e})  dE00 {err['de2000_mean']:.3f}")
         if "preset" in knobs:
             mask_p = sky_mask(cam_p, elev)
-            w_p = np.where(mask_p, cam_p.pixel_solid_angles(), 0.0)
+            dirs_p, omega_p = cam_p.directions()[0], cam_p.pixel_solid_angles()
+            w_p = np.where(mask_p, omega_p, 0.0)
             ref_p = ref["cam0"]
             avg_p = auto_exposure_luminance(rgb_of(ref_p, ref_wl), mask_p)
-            dirs_p, omega_p = cam_p.directions()[0], cam_p.pixel_solid_angles()
             light_ref_p = lighting_xyz(ref_p, ref_wl, dirs_p, omega_p, ref["sun_irradiance"], elev)
             for name, settings in cfg.presets.items():
                 if settings == cfg.reference:
