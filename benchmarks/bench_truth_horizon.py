@@ -43,7 +43,8 @@ def main(argv):
     what, scene = argv[0], argv[1]
     a, e = scene.split(":")
     sc = b.Scene(a, float(e), os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".cache", "truth"))
-    base = replace(b.QUALITIES["final"].settings, exact=True, ms_wavelength_step_nm=1.0)
+    base = replace(b.QUALITIES["final"].settings, exact=True, ms_wavelength_step_nm=1.0,
+                   ms_wavelength_outer_step_nm=0.0)
     if what == "knobs":
         prof, mc = sc.load_mc()
         if mc is None:

@@ -50,7 +50,7 @@ for name in scenes.split(","):
     sc = bt.Scene(a, float(e), "/nonexistent")
     prof = sc.atm.optical_profile(list(wl))
     views, dirs, keep = scene_views(sc, bt.SUN_AZIMUTH)
-    s = replace(QUALITIES["final"].settings, ms_wavelength_step_nm=5.0)
+    s = replace(QUALITIES["final"].settings, ms_wavelength_step_nm=5.0, ms_wavelength_outer_step_nm=0.0)
     t = time.perf_counter()
     sol = solve_sky(prof, s)
     solve_s = time.perf_counter() - t

@@ -70,7 +70,7 @@ for name in sys.argv[1].split(","):
     prof = sc.atm.optical_profile(list(wl))
     tau_o3 = prof.vertical_optical_depth(prof.ozone_absorption)
     VIEWS, dirs, keep = scene_views(sc, bt.SUN_AZIMUTH)
-    s = replace(QUALITIES["final"].settings, ms_wavelength_step_nm=5.0)
+    s = replace(QUALITIES["final"].settings, ms_wavelength_step_nm=5.0, ms_wavelength_outer_step_nm=0.0)
     t = time.perf_counter(); sol = solve_sky(prof, s); ts = time.perf_counter() - t
     print(f"{name}: solve {ts:.1f} s", flush=True)
     def render(solution):

@@ -104,7 +104,11 @@ class MarchSettings:
     orders: int | None = None  # highest scattering order; None = until `order_tolerance`
     max_orders: int = 20
     order_tolerance: float = 1e-3  # stop when an order adds less than this share
-    ms_wavelength_step_nm: float = 20.0  # spacing of the wavelengths the solver uses
+    ms_wavelength_step_nm: float = 20.0  # spacing of the wavelengths the solver uses (inside ms_fine_band_nm)
+    # spacing of the solver's wavelengths outside ms_fine_band_nm, where the colour matching
+    # functions are small (solver_wavelengths); 0 = ms_wavelength_step_nm everywhere
+    ms_wavelength_outer_step_nm: float = 0.0
+    ms_fine_band_nm: tuple[float, float] = (440.0, 660.0)
     table_altitudes: int = 24
     table_mu: int = 32
     # of the table_mu / 2 zenith nodes of each hemisphere, this many within table_mu_horizon_deg of
@@ -169,6 +173,12 @@ class MarchSettings:
         if self.halves_azimuths and int(self.table_phi) % 2:
             raise SkymodelInputError("table_phi", self.table_phi, "an even count with spherical_coarse_phi or "
                                      "coarse_phi_from_order (work on every other azimuth node)")
+        if not float(self.ms_wavelength_outer_step_nm) >= 0.0:
+            raise SkymodelInputError("ms_wavelength_outer_step_nm", self.ms_wavelength_outer_step_nm,
+                                     "0 (the inner spacing everywhere) or a spacing in nm")
+        band = tuple(float(v) for v in self.ms_fine_band_nm)
+        if len(band) != 2 or not band[0] < band[1]:
+            raise SkymodelInputError("ms_fine_band_nm", self.ms_fine_band_nm, "(low, high) wavelengths in nm, low < high")
         if self.table_mu_horizon_nodes and not 0.0 < float(self.table_mu_horizon_deg) < 90.0:
             raise SkymodelInputError("table_mu_horizon_deg", self.table_mu_horizon_deg, "degrees in (0, 90)")
 
@@ -206,16 +216,35 @@ def profile_at_wavelengths(profile, wavelengths_nm):
                    aerosol_absorption=tr(profile.aerosol_absorption))
 
 
-def solver_wavelengths(wavelengths_nm, step_nm: float) -> np.ndarray:
-    """Wavelengths for the multiple-scattering solver: about every ``step_nm`` across
-    the grid, always including its ends, never more than the grid itself."""
+def solver_wavelengths(wavelengths_nm, step_nm: float, outer_step_nm: float = 0.0,
+                       fine_band_nm: tuple[float, float] = (440.0, 660.0)) -> np.ndarray:
+    """Wavelengths for the multiple-scattering solver (nm): about every ``step_nm`` across
+    the grid, always including its ends, never more than the grid itself. With an
+    ``outer_step_nm`` larger than ``step_nm``, ``step_nm`` holds inside ``fine_band_nm`` (its
+    edges among the wavelengths) and ``outer_step_nm`` outside it, where the colour matching
+    functions are small (``final``: 10 nm over 440-660 nm and 20 nm beyond, 32 solver
+    wavelengths for 380-780 nm instead of 41; docs/accuracy.md, "The solver's wavelengths")."""
     wl = np.asarray(wavelengths_nm, float)
     if wl.size <= 2 or step_nm <= 0:
         return wl
-    n = int(np.ceil((wl.max() - wl.min()) / step_nm)) + 1
-    if n >= wl.size:
-        return wl
-    return np.linspace(wl.min(), wl.max(), n)
+    lo, hi = float(wl.min()), float(wl.max())
+    if outer_step_nm > step_nm:
+        band_lo, band_hi = max(float(fine_band_nm[0]), lo), min(float(fine_band_nm[1]), hi)
+        if band_lo >= band_hi:  # the band outside the grid: the outer spacing throughout
+            pieces = [(lo, hi, outer_step_nm)]
+        else:
+            pieces = [(lo, band_lo, outer_step_nm), (band_lo, band_hi, step_nm), (band_hi, hi, outer_step_nm)]
+    else:
+        pieces = [(lo, hi, step_nm)]
+    out = np.unique(np.concatenate([np.linspace(a, b, int(np.ceil((b - a) / st)) + 1)
+                                    for a, b, st in pieces if b > a] or [np.array([lo])]))
+    return wl if out.size >= wl.size else out
+
+
+def settings_solver_wavelengths(wavelengths_nm, settings: MarchSettings) -> np.ndarray:
+    """:func:`solver_wavelengths` with the spacings of ``settings`` (nm)."""
+    return solver_wavelengths(wavelengths_nm, settings.ms_wavelength_step_nm, settings.ms_wavelength_outer_step_nm,
+                              settings.ms_fine_band_nm)
 
 
 def optics_key(profile, settings: MarchSettings) -> str:
@@ -275,7 +304,7 @@ def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> 
     cone = delta_m_cone_deg(profile, s.delta_m_cutoff_deg, s.delta_m_mild_cutoff_deg, table_phi=s.table_phi)
     medium = factor_medium(profile, cone)
     # multiple scattering runs at the solver wavelengths, per unit solar irradiance
-    wl_ms = solver_wavelengths(profile.wavelengths_nm, s.ms_wavelength_step_nm)
+    wl_ms = settings_solver_wavelengths(profile.wavelengths_nm, s)
     prof_ms = profile_at_wavelengths(profile, wl_ms)
     prof_ms = replace(prof_ms, solar_irradiance=np.ones_like(wl_ms))
     medium_ms = factor_medium(prof_ms, cone)

@@ -144,18 +144,18 @@ class MemoryEstimate:
                 f"{self.tables / GIB:.2f}, bands {self.bands / GIB:.2f}, image {self.image / GIB:.2f} GiB)")
 
 
-def _n_solver_wavelengths(n_wavelengths: int, wavelengths_nm, step_nm: float) -> int:
-    """How many wavelengths the multiple-scattering solver uses (an evenly spaced grid
-    over the tabulated range when ``wavelengths_nm`` is not given)."""
+def _n_solver_wavelengths(n_wavelengths: int, wavelengths_nm, settings) -> int:
+    """How many wavelengths the multiple-scattering solver uses with the march ``settings``
+    (an evenly spaced grid over the tabulated range when ``wavelengths_nm`` is not given)."""
     import numpy as np
 
-    from skymodel.render.marcher import solver_wavelengths
+    from skymodel.render.marcher import settings_solver_wavelengths
     from skymodel.wavelengths import default_wavelengths
 
     if wavelengths_nm is None:
         lo, hi = default_wavelengths()[[0, -1]]
         wavelengths_nm = np.linspace(lo, hi, max(int(n_wavelengths), 1))
-    return int(solver_wavelengths(np.asarray(wavelengths_nm, dtype=float), step_nm).size)
+    return int(settings_solver_wavelengths(np.asarray(wavelengths_nm, dtype=float), settings).size)
 
 
 def _march_piece() -> int:
@@ -214,7 +214,7 @@ def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=
     s = quality_settings(quality)
     w, h, n_wl = int(width), int(height), int(n_wavelengths)
     pixels = w * h if n_pixels is None else int(n_pixels)
-    n_ms = _n_solver_wavelengths(n_wl, wavelengths_nm, s.ms_wavelength_step_nm)
+    n_ms = _n_solver_wavelengths(n_wl, wavelengths_nm, s)
     transport = (s.table_altitudes * s.table_mu) ** 2 * n_ms * 8.0
     field = n_ms * s.table_mu * s.table_phi * s.table_altitudes * s.table_mus * 4.0
     sun_build = SUN_TABLE_BYTES_PER_SAMPLE * s.sun_table_altitudes * s.sun_table_x * s.sun_table_steps

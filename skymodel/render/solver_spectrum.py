@@ -1,7 +1,8 @@
 """From the multiple-scattering solver's wavelengths to the render's.
 
 The solver runs at fewer wavelengths than the render (``MarchSettings.ms_wavelength_step_nm``:
-40 nm at ``preview``, 10 nm at ``final`` and ``reference``), and what it gives (the diffuse
+40 nm at ``preview``, 10 nm at ``reference``, 10 nm over 440-660 nm and 20 nm beyond at
+``final``, :func:`skymodel.render.marcher.solver_wavelengths`), and what it gives (the diffuse
 light gathered along a view ray, the diffuse irradiance of the ground, both per unit solar
 irradiance) is carried to the render's wavelengths by :class:`SolverSpectrumMap`.
 
