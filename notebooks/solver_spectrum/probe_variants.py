@@ -20,7 +20,7 @@ from _setup import scene_views
 from dataclasses import replace
 import skymodel.render.multiple_scattering as ms
 from skymodel.numerics import linear_interp_matrix
-from skymodel.render.marcher import SkyMarcher, solver_wavelengths
+from skymodel.render.marcher import SkyMarcher, settings_solver_wavelengths
 from skymodel.render.quality import QUALITIES
 from skymodel.render.solver_spectrum import SolverSpectrumMap
 from skymodel.wavelengths import default_wavelengths
@@ -75,7 +75,7 @@ for name in args[0].split(","):
     a, e = name.split(":"); sc = bt.Scene(a, float(e), "/nonexistent"); prof = sc.atm.optical_profile(list(wl))
     views, dirs, keep = scene_views(sc, bt.SUN_AZIMUTH)
     s = replace(QUALITIES["final"].settings, spherical_probe_step_nm=10.0)
-    ws = solver_wavelengths(wl, s.ms_wavelength_step_nm)
+    ws = settings_solver_wavelengths(wl, s)
     idx = ms.probe_indices(ws, QUALITIES["final"].settings.spherical_probe_step_nm)
     pw = sc.atm.optical_profile(list(ws))
     tau = {"R": pw.vertical_optical_depth(pw.rayleigh_scattering), "O": pw.vertical_optical_depth(pw.ozone_absorption),

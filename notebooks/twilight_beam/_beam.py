@@ -29,7 +29,7 @@ def beam_in_solver_if_asked():
         probes, corr = pp.bent_beam_depth(sun_table, profile, medium, cutoff_deg, scaled_medium=2)
         if np.any(corr):
             sun_table.add_depth_columns(2, corr, linear_interp_matrix(probes, profile.wavelengths_nm))
-            wl_ms = mm.solver_wavelengths(profile.wavelengths_nm, QUALITIES["final"].settings.ms_wavelength_step_nm)
+            wl_ms = mm.settings_solver_wavelengths(profile.wavelengths_nm, QUALITIES["final"].settings)
             sun_table.add_depth_columns(1, corr, linear_interp_matrix(probes, wl_ms))
 
     mm.add_peak_paths = add_both
