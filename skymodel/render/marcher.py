@@ -178,7 +178,8 @@ class MarchSettings:
                                      "0 (the inner spacing everywhere) or a spacing in nm")
         band = tuple(float(v) for v in self.ms_fine_band_nm)
         if len(band) != 2 or not band[0] < band[1]:
-            raise SkymodelInputError("ms_fine_band_nm", self.ms_fine_band_nm, "(low, high) wavelengths in nm, low < high")
+            raise SkymodelInputError("ms_fine_band_nm", self.ms_fine_band_nm,
+                                     "(low, high) wavelengths in nm, low < high")
         if self.table_mu_horizon_nodes and not 0.0 < float(self.table_mu_horizon_deg) < 90.0:
             raise SkymodelInputError("table_mu_horizon_deg", self.table_mu_horizon_deg, "degrees in (0, 90)")
 
