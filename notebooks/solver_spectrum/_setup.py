@@ -21,6 +21,21 @@ def scene_views(sc, sun_azimuth_deg):
     return np.concatenate([sc.views, grid]), dirs, keep
 
 
+def every_wavelength_scene(name, wavelengths_nm):
+    """bench_truth's scene ``name`` ("rural:-4", its views and grid by :func:`scene_views`) on
+    ``wavelengths_nm``, with `final`'s settings solving at every one of them: (scene, profile,
+    views, dirs, keep, settings). The scripts importing this put benchmarks/ on sys.path first."""
+    import bench_truth as bt
+    from skymodel.render.quality import QUALITIES
+
+    a, e = name.split(":")
+    sc = bt.Scene(a, float(e), "/nonexistent")
+    prof = sc.atm.optical_profile(list(wavelengths_nm))
+    views, dirs, keep = scene_views(sc, bt.SUN_AZIMUTH)
+    s = replace(QUALITIES["final"].settings, ms_wavelength_step_nm=5.0, ms_wavelength_outer_step_nm=0.0)
+    return sc, prof, views, dirs, keep, s
+
+
 def sub_solution(sol, profile, idx, to_full):
     """``sol`` (a SkySolution solved at every wavelength of ``profile``) keeping only the solver
     wavelengths ``idx``, carried to the profile's by ``to_full`` (any callable on (..., n_idx))."""

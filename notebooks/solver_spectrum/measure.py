@@ -12,14 +12,13 @@ CIE XYZ median and max; and once, at the end, `final` as the package builds it (
 solve) against the same map on the 81-wavelength solve (what the subsampling leaves out)."""
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 sys.path[:0] = [str(Path(__file__).resolve().parents[2] / "benchmarks")]
 import bench_truth as bt  # noqa: E402
-from _setup import LinearMap, scene_views, sub_solution  # noqa: E402
+from _setup import LinearMap, every_wavelength_scene, sub_solution  # noqa: E402
 from skymodel.colorimetry import cmf_weights  # noqa: E402
 from skymodel.render.marcher import SkyMarcher, solve_sky  # noqa: E402
 from skymodel.render.quality import QUALITIES  # noqa: E402
@@ -46,11 +45,7 @@ print("| scene | step | map | spectral median | spectral worst (where) | XYZ med
 print("|---|---|---|---|---|---|---|")
 last = None
 for name in scenes.split(","):
-    a, e = name.split(":")
-    sc = bt.Scene(a, float(e), "/nonexistent")
-    prof = sc.atm.optical_profile(list(wl))
-    views, dirs, keep = scene_views(sc, bt.SUN_AZIMUTH)
-    s = replace(QUALITIES["final"].settings, ms_wavelength_step_nm=5.0, ms_wavelength_outer_step_nm=0.0)
+    sc, prof, views, dirs, keep, s = every_wavelength_scene(name, wl)
     t = time.perf_counter()
     sol = solve_sky(prof, s)
     solve_s = time.perf_counter() - t

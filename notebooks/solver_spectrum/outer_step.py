@@ -8,17 +8,15 @@ Grids (indices into the 81 render wavelengths, 380-780 nm): u10 = every 10 nm (4
 n400-700 (36), u20 = every 20 nm (21). Prints, over the truth's views and a grid more than 2.27
 degrees from the sun: spectral median |rel| and worst (wavelength), CIE XYZ median and max |rel|, %."""
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 sys.path[:0] = [str(Path(__file__).resolve().parents[2] / "benchmarks"), str(Path(__file__).resolve().parent)]
 import bench_truth as bt  # noqa: E402
-from _setup import scene_views, sub_solution  # noqa: E402
+from _setup import every_wavelength_scene, sub_solution  # noqa: E402
 from skymodel.colorimetry import cmf_weights  # noqa: E402
 from skymodel.render.marcher import SkyMarcher, solve_sky  # noqa: E402
-from skymodel.render.quality import QUALITIES  # noqa: E402
 from skymodel.render.solver_spectrum import SolverSpectrumMap  # noqa: E402
 from skymodel.wavelengths import default_wavelengths  # noqa: E402
 
@@ -48,11 +46,7 @@ def stats(r, full, keep):
 print("| scene | grid (solver wavelengths) | spectral median | spectral worst (nm) | XYZ median | XYZ max |")
 print("|---|---|---|---|---|---|")
 for name in scenes.split(","):
-    a, e = name.split(":")
-    sc = bt.Scene(a, float(e), "/nonexistent")
-    prof = sc.atm.optical_profile(list(wl))
-    views, dirs, keep = scene_views(sc, bt.SUN_AZIMUTH)
-    s = replace(QUALITIES["final"].settings, ms_wavelength_step_nm=5.0, ms_wavelength_outer_step_nm=0.0)
+    sc, prof, views, dirs, keep, s = every_wavelength_scene(name, wl)
     sol = solve_sky(prof, s)
 
     def render(solution):
