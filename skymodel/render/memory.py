@@ -112,8 +112,9 @@ NEAR_SUN_CUBES = 1.0
 REDUCED_TABLE_PIXEL_BYTES = 18.0
 #: ... and bytes per pixel of the band being looked up (``band_pixels``; its directions, the lookup's and the
 #: colour finish's temporaries; measured with ``tracemalloc``: 0.24 GiB for a band of 2^20 pixels at f78aa99,
-#: 0.35 GiB at 9fe0b71).
-REDUCED_TABLE_BAND_BYTES = 260.0
+#: 0.35 GiB at 9fe0b71, 0.379-0.410 GiB at e44107b (``benchmarks/bench_memory_phases.py preview`` 2048x1024,
+#: 4096x2048, 8192x4096), where 260 put the colour preview 4096x2048's estimate at 0.71-0.75 of its peak).
+REDUCED_TABLE_BAND_BYTES = 380.0
 #: The tables kept through the march, in float64 transport matrices (the float32 copy, the field, the
 #: allocator's unreturned pages; measured: 0.18 GiB traced at the final preset's march, 0.56 of its
 #: transport matrices, at f78aa99; 1.0 before #23's speed work).
