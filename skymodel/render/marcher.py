@@ -93,6 +93,12 @@ AUREOLE_MAX_PEAK_TAU = 30.0
 _FINE_VIEW_STEPS = 256
 
 
+#: Wavelengths (nm) where the colour matching functions are large: a solver with
+#: ``MarchSettings.ms_wavelength_outer_step_nm`` keeps its finer step inside them
+#: (:func:`solver_wavelengths`; docs/accuracy.md, "The solver's wavelengths").
+EYE_BAND_NM = (440.0, 660.0)
+
+
 @dataclass(frozen=True)
 class MarchSettings:
     """Every accuracy knob of the marcher (the quality presets pick values for them)."""
@@ -108,7 +114,7 @@ class MarchSettings:
     # spacing of the solver's wavelengths outside ms_fine_band_nm, where the colour matching
     # functions are small (solver_wavelengths); 0 = ms_wavelength_step_nm everywhere
     ms_wavelength_outer_step_nm: float = 0.0
-    ms_fine_band_nm: tuple[float, float] = (440.0, 660.0)
+    ms_fine_band_nm: tuple[float, float] = EYE_BAND_NM
     table_altitudes: int = 24
     table_mu: int = 32
     # of the table_mu / 2 zenith nodes of each hemisphere, this many within table_mu_horizon_deg of
@@ -218,7 +224,7 @@ def profile_at_wavelengths(profile, wavelengths_nm):
 
 
 def solver_wavelengths(wavelengths_nm, step_nm: float, outer_step_nm: float = 0.0,
-                       fine_band_nm: tuple[float, float] = (440.0, 660.0)) -> np.ndarray:
+                       fine_band_nm: tuple[float, float] = EYE_BAND_NM) -> np.ndarray:
     """Wavelengths for the multiple-scattering solver (nm): about every ``step_nm`` across
     the grid, always including its ends, never more than the grid itself. With an
     ``outer_step_nm`` larger than ``step_nm``, ``step_nm`` holds inside ``fine_band_nm`` (its
