@@ -102,7 +102,12 @@ class PeakAureole:
 
     def _inverse(self, ak, theta_out) -> np.ndarray:
         """Inverse transform of ak (n, M) (radiance per unit irradiance in k space) at
-        ``theta_out`` (radians): (len(theta_out), M), 0 beyond ``THETA_MAX_RAD``."""
+        ``theta_out`` (radians): (len(theta_out), M), 0 beyond ``THETA_MAX_RAD``; what the
+        FFT's ringing puts below 0 is clipped."""
+        return np.maximum(self._inverse_signed(ak, theta_out), 0.0)
+
+    def _inverse_signed(self, ak, theta_out) -> np.ndarray:
+        """:meth:`_inverse` without the clipping at 0 (for differences)."""
         b = ifht(np.ascontiguousarray((ak * (self.k / (2.0 * np.pi))[:, None]).T), self.dln, mu=0.0,
                  offset=self.offset)
         c = b.T / self.theta[:, None]
@@ -111,7 +116,7 @@ class PeakAureole:
         w = ((t - self.theta[i]) / (self.theta[i + 1] - self.theta[i]))[:, None]
         out = c[i] * (1.0 - w) + c[i + 1] * w
         out[np.asarray(theta_out) > THETA_MAX_RAD] = 0.0
-        return np.maximum(out, 0.0)
+        return out
 
     def multiple(self, q, tau_peak, theta_out) -> np.ndarray:
         """Radiance per unit irradiance (sr^-1) at angles ``theta_out`` (radians) from the
@@ -144,4 +149,29 @@ class PeakAureole:
             if tau > 0:
                 x = tau * qk
                 out[:, j] = self._inverse(np.exp(-tau) * (np.expm1(x) - x) / tau, theta_out)
+        return out
+
+    def spread_table(self, q, g, tau_grid, theta_out) -> np.ndarray:
+        """What the peak's small turns do to a smooth angular pattern ``g``: (g * K_tau) - g
+        at ``theta_out`` (radians) for every peak optical depth of ``tau_grid``,
+        (len(theta_out), len(tau_grid), W) in g's units, where
+
+            K_tau = sum over n >= 0 of exp(-tau) tau^n / n! q^{*n}
+
+        is the angular spread of light that has crossed a peak optical depth tau (n = 0, the
+        part never turned, a delta; q the normalised peak shape, (n, W) on this grid).
+        ``g`` (n, W) on this grid: a radially symmetric, non-negative pattern that vanishes
+        beyond some angle; the spread keeps its integral over the plane, so each column of
+        the result integrates to 0. In Hankel space G (exp(tau (Q - 1)) - 1). Used for the
+        first scattering's non-peak part (:func:`skymodel.render.marcher.peak_spread_table`)."""
+        taus = np.asarray(tau_grid, float)
+        g = np.asarray(g, float)
+        norm = self.ring @ g  # (W,)
+        shape = np.where(norm > 0, g / np.where(norm > 0, norm, 1.0), 0.0)
+        gk = self.transform(shape) * norm[None, :]
+        qk = self.transform(q)
+        out = np.zeros((len(theta_out), taus.size, g.shape[1]))
+        for j, tau in enumerate(taus):
+            if tau > 0:
+                out[:, j] = self._inverse_signed(gk * np.expm1(tau * (qk - 1.0)), theta_out)
         return out

@@ -24,6 +24,9 @@ For a view ray from the observer O in direction v (looking along v) the radiance
   forward peaks, which delta-M leaves out of the solver, added per point of the ray in
   the small-angle approximation (:mod:`skymodel.render.aureole`,
   ``MarchSettings.peak_aureole``); it is counted in ``multiple``;
+* the first scattering's capped phase functions spread by the cut peak's turns on its sun and
+  view paths (:func:`peak_spread_table`, ``MarchSettings.peak_spread``), which the delta-M
+  first scattering counts as not turned; counted in ``multiple`` with the aureole;
 * near a low sun the delta-M beam of the first scattering and the ground below (T_sun with
   the scaled extinction) carries the cut peak's light along its own, bent paths, not the
   straight sun path (:mod:`skymodel.render.peak_paths`, ``MarchSettings.peak_paths``); the
@@ -134,11 +137,11 @@ class MarchSettings:
     sun_exact_deg: float = 8.0  # directions this close to the sun are evaluated exactly
     # Half-angle of the forward-peak cone that delta-M cuts from the aerosol phase functions
     # in the multiple-scattering part (the peak aureole puts back what is cut). 12 degrees
-    # suits the default tables for a sharp peak (coarse dust); within about 3 degrees of a
-    # sun at the horizon, in dust, the aureole's small-angle approximation is then ~10 % low.
-    # A 3-degree cone with table_mu=64, table_phi=48 removes that at 4-5x the solver time
-    # (docs/accuracy.md, "The sunward horizon at sunset"); a narrow cone with coarse tables
-    # is worse than 12.
+    # suits a sharp peak (coarse dust) without peak_spread: a narrower cone then puts the
+    # views at its own angle from the sun several % too bright (the first scattering's
+    # capped phase, not spread by the peak's turns); with the spread, final and reference
+    # cut every peak at 6 degrees (the sunward horizon at a setting sun in dust: 12 degrees
+    # leaves it up to 16 % dark; docs/accuracy.md, notebooks/sunward_zero).
     delta_m_cutoff_deg: float = 12.0
     # The narrower cone for a mild forward peak (most aerosol types: skymodel.render.medium.
     # delta_m_cone_deg; with table_phi >= 12 only); 0 = always delta_m_cutoff_deg
@@ -154,6 +157,9 @@ class MarchSettings:
     # (an even table_phi; 0 = none; multiple_scattering.CoarseOrders)
     coarse_phi_from_order: int = 0
     peak_aureole: bool = True  # add the light scattered 2+ times in the cut forward peaks (skymodel.render.aureole)
+    # spread the first scattering's capped phase functions by the cut peak's turns on the sun and
+    # view paths (marcher.peak_spread_table; with peak_aureole)
+    peak_spread: bool = True
     peak_diffuse: bool = False  # scatter the diffuse light near the horizon in the cut peaks (skymodel.render.peak_diffuse)
     peak_paths: bool = True  # delta-M's sun beam near a low sun with the cut peak's light on bent paths (skymodel.render.peak_paths)
     source_by_scattering: bool = True  # read J between altitude nodes as sigma_s(h) J/sigma_s (multiple_scattering.source_at)
@@ -298,6 +304,7 @@ class SkySolution:
     to_full: SolverSpectrumMap  # the solver's spectra -> the profile's wavelengths
     aureole: tuple | None
     timings: dict
+    peak_spread: np.ndarray | None = None  # (R, n_theta, n_tau, W) float32: peak_spread_table
 
 
 def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> SkySolution:
@@ -335,34 +342,92 @@ def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> 
     to_full = SolverSpectrumMap.for_profile(wl_ms, profile)
     aureole = (peak_aureole_table(profile, medium, cone, top)
                if (s.peak_aureole and ms_field.orders > 1) else None)
+    spread = (peak_spread_table(profile, medium, cone, top, aureole[1])
+              if (aureole is not None and s.peak_spread) else None)
     timings["multiple_scattering_s"] = time.perf_counter() - t1
-    return SkySolution(optics_key(profile, s), s, medium, medium_ms, sun_table, ms_field, to_full, aureole, timings)
+    return SkySolution(optics_key(profile, s), s, medium, medium_ms, sun_table, ms_field, to_full, aureole, timings,
+                       spread)
 
 
 def peak_aureole_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: float):
     """Table of the peak light that delta-M leaves out (:mod:`skymodel.render.aureole`):
     (theta grid in radians, peak optical depth grid, table (n_theta, n_tau, n_wl) in
     sr^-1), or None when the aerosols have no truncated peak."""
+    from skymodel.render.aureole import THETA_MAX_RAD, PeakAureole
+
+    if not np.any(medium.forward_fraction > 0):
+        return None
+    machine = PeakAureole()
+    q = _peak_shape(profile, medium, delta_m_cutoff_deg, top_altitude_m, machine)
+    theta = np.linspace(0.0, THETA_MAX_RAD, 601)
+    tau = np.concatenate([[0.0], np.geomspace(0.005, AUREOLE_MAX_PEAK_TAU, 47)])
+    return theta, tau, machine.correction_table(q, tau, theta)
+
+
+def _peak_shape(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: float, machine) -> np.ndarray:
+    """One normalised peak shape q (n, W) on ``machine``'s angle grid (a
+    :class:`~skymodel.render.aureole.PeakAureole`): the regimes' cut peaks weighted by their
+    column peak optical depth."""
     from skymodel.numerics import trapezoid
-    from skymodel.render.aureole import THETA_MAX_RAD, PeakAureole, peak_part
+    from skymodel.render.aureole import peak_part
 
     prof, med = profile, medium
-    if not np.any(med.forward_fraction > 0):
-        return None
-    # one peak shape: the regimes' normalised peaks weighted by their column peak optical depth
     z = np.linspace(0.0, top_altitude_m, 2001)
     col = np.stack([trapezoid(lr.at(z), z, axis=0) for lr in med.aerosol]) * med.forward_fraction  # (R, W)
     total = col.sum(axis=0)
-    machine = PeakAureole()
     peaks = peak_part(prof.aerosol_phase_angles_deg, prof.aerosol_phase, delta_m_cutoff_deg)
     q = np.zeros((machine.theta.size, prof.wavelengths_nm.size))
     for r in range(peaks.shape[0]):
         if np.any(col[r] > 0):
             share = np.where(total > 0, col[r] / np.where(total > 0, total, 1.0), 0.0)
             q += machine.shape_on_grid(prof.aerosol_phase_angles_deg, peaks[r]) * share
+    return q
+
+
+#: Angle from the sun (degrees) out to which :func:`peak_spread_table` spreads the first
+#: scattering's capped phase functions; beyond it they vary too slowly for the peak's turns
+#: (a few degrees) to change them (the table is 0 there).
+PEAK_SPREAD_MAX_DEG = 40.0
+
+
+def peak_spread_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: float, tau_grid):
+    """What the cut peak's turns do to the first scattering's non-peak part, per aerosol regime:
+    (R, n_theta, n_tau, W) float32 in sr^-1 on the peak-aureole table's angles (0-60 degrees,
+    radians) and peak optical depths ``tau_grid``, or None when no aerosol has a cut peak.
+
+    The delta-M first scattering (:meth:`SkyMarcher._delta_m_first_scattering`) counts the
+    capped phase function p_cap = min(p, p(cutoff)) through the scaled extinction: the light
+    the peak turns on the sun path and on the view path is taken to go on along them, as if it
+    were not turned. It is turned, by a few degrees each time, so the pattern the observer sees
+    is p_cap spread by those turns: p_cap * K_tau, with tau the peak optical depth of the sun
+    path plus the view path (:meth:`~skymodel.render.aureole.PeakAureole.spread_table`). Where
+    p_cap is smooth on the scale of the turns this changes nothing; at the cone's edge, where
+    the flat top meets the steep fall of a sharp peak, it does: a 6-degree cone in desert dust
+    (AOD 0.5, sun 5 degrees) puts the view 6 degrees above the sun 4 % above the Monte Carlo
+    truth without the spread and 0.3 % with it (notebooks/sunward_zero). The table holds
+    p_cap * K_tau - p_cap; p_cap is read within :data:`PEAK_SPREAD_MAX_DEG` of the sun."""
+    from skymodel.render.aureole import THETA_MAX_RAD, PeakAureole
+
+    med = medium
+    if not np.any(med.forward_fraction > 0):
+        return None
+    machine = PeakAureole()
+    q = _peak_shape(profile, med, delta_m_cutoff_deg, top_altitude_m, machine)
     theta = np.linspace(0.0, THETA_MAX_RAD, 601)
-    tau = np.concatenate([[0.0], np.geomspace(0.005, AUREOLE_MAX_PEAK_TAU, 47)])
-    return theta, tau, machine.correction_table(q, tau, theta)
+    ang = np.radians(np.asarray(profile.aerosol_phase_angles_deg, dtype=float))
+    capped = med.truncated_phase * (1.0 - med.forward_fraction)[:, None, :]  # (R, A, W): min(p, p(cutoff))
+    far = np.radians(PEAK_SPREAD_MAX_DEG)
+    n_wl = capped.shape[2]
+    out = np.zeros((capped.shape[0], theta.size, np.size(tau_grid), n_wl), dtype=np.float32)
+    for r in range(capped.shape[0]):
+        if not np.any(med.forward_fraction[r] > 0):
+            continue
+        on_grid = np.stack([np.interp(machine.theta, ang, capped[r, :, w]) for w in range(n_wl)], axis=1)
+        at_far = np.array([np.interp(far, ang, capped[r, :, w]) for w in range(n_wl)])
+        # the pattern above its value at the far angle (a constant is not changed by the spread)
+        g = np.where(machine.theta[:, None] < far, np.maximum(on_grid - at_far[None, :], 0.0), 0.0)
+        out[r] = machine.spread_table(q, g, tau_grid, theta)
+    return out
 
 
 class SkyMarcher:
@@ -405,6 +470,7 @@ class SkyMarcher:
         # the peak-aureole table in float32 (:meth:`_aureole_gather`), made here: the
         # marcher's threads share it
         self._aureole_table32 = None if self._aureole is None else self._aureole[2].astype(np.float32)
+        self._spread = solution.peak_spread  # float32 already
         t2 = time.perf_counter()
         self._grid = None if s.exact else self._build_grid()
         self.timings["direction_grid_s"] = time.perf_counter() - t2
@@ -525,7 +591,7 @@ class SkyMarcher:
         """The peak-aureole table of this marcher's medium (:func:`peak_aureole_table`)."""
         return peak_aureole_table(self.profile, self.medium, self.medium.cutoff_deg, self.top)
 
-    def _aureole_gather(self, cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s, block: int = 256):
+    def _aureole_gather(self, cos_theta, dt, ext, ext_s, t_sun, t_sun_s, trans_s, block: int = 256, spread=None):
         """Integral along the view rays of directions (G, A) on rings (samples (G, S)) of
         the peak light left out by delta-M: sigma_peak E_sun T*_sun T*_view C(theta,
         tau_peak) dt, (G, A, n_wl); tau_peak is the peak optical depth of the sun path to
@@ -533,7 +599,13 @@ class SkyMarcher:
         ``ext_s``, ``trans_s`` per ring; ``t_sun``, ``t_sun_s`` (G, A, S, n_wl). Directions
         are taken ``block`` at a time (memory ~ block * S * n_wl * 4 B * 8). In float32,
         the precision of the sun's transmittances it reads (:meth:`_march`) and of the
-        solver's field; the sum over a ray's samples is good to a few 1e-7."""
+        solver's field; the sum over a ray's samples is good to a few 1e-7.
+
+        ``spread``: also the first scattering's peak spread (:func:`peak_spread_table`), read
+        at the same angle and tau: ``(regimes, weights, t_first)``, the table index of each
+        aerosol regime, its sum weight trans_s sigma_r dt per ring (G, S, n_wl) and the sun
+        transmittance the delta-M first scattering reads (G, A, S, n_wl); added to the result
+        as E_sun sum_r sum_s weight t_first S_r(theta, tau)."""
         theta_g, tau_g, _ = self._aureole
         f32 = np.float32
         table = self._aureole_table32
@@ -564,6 +636,13 @@ class SkyMarcher:
             base = (np.arange(g.size)[:, None, None] * n_tau + j) * n_wl + w_idx  # index of (direction, tau_j, wl)
             c = rows[base] * (1 - fj) + rows[base + n_wl] * fj
             out[g, a] = (seen[g] * ts_s * c).sum(axis=1)
+            if spread is not None:
+                t_first = spread[2][g, a].astype(f32, copy=False)
+                for reg, weight in zip(spread[0], spread[1]):
+                    tab_r = self._spread[reg]
+                    rows = (tab_r[i] * (1 - fi) + tab_r[i + 1] * fi).reshape(-1)
+                    c = rows[base] * (1 - fj) + rows[base + n_wl] * fj
+                    out[g, a] += (weight[g] * t_first * c).sum(axis=1)
         return out * self.profile.solar_irradiance
 
     def _delta_m_first_scattering(self, cos_theta, dt, ray, regimes, aers, pa, c_aer, trans_s, t_sun_s):
@@ -748,7 +827,11 @@ class SkyMarcher:
             rebalance = first - single
             if self._aureole is not None:
                 # the aureole's own small-angle model of the peak light keeps the straight path
-                aureole = self._aureole_gather(cos_theta, rings.dt, ext, ext_s, t_sun, scaled[1], trans_s)
+                spread = None
+                if self._spread is not None:  # the first scattering's capped phase, spread by the peak
+                    spread = (regimes, [(trans_s * dtw * sig).astype(np.float32) for sig in aers], t_sun_s)
+                aureole = self._aureole_gather(cos_theta, rings.dt, ext, ext_s, t_sun, scaled[1], trans_s,
+                                               spread=spread)
         # ground seen directly: direct sun and (from the solver) diffuse sky light
         ground = np.zeros_like(single)
         ms_ground = np.zeros_like(single)

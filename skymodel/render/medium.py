@@ -146,8 +146,11 @@ def delta_m_cone_deg(profile, cutoff_deg: float, mild_cutoff_deg: float = 0.0,
     and that light, cut, is missing from the horizon toward the sun (rural AOD 0.2 against
     the Monte Carlo truth at sun 0 and -4 degrees: 3-5 % low at 650 nm with a 12-degree
     cone, 2-3 % with 6 degrees). A mild peak cut at the narrow cone leaves a phase function
-    the solver's direction nodes resolve; a sharp one (coarse dust) leaves a lobe they smear
-    (desert AOD 0.5 at sun 5 degrees: worst 1.3 % with 12 degrees, 3.8 % with 6). Never
+    the solver's direction nodes resolve; a sharp one (coarse dust) leaves a shoulder at the
+    cone's edge that the delta-M first scattering, unless spread by the peak's turns
+    (``MarchSettings.peak_spread``), turns into a bright ring (desert AOD 0.5 at sun 5 degrees:
+    worst 1.3 % with 12 degrees, 3.8 % with 6; with the spread, 1.0 % with 6, the cone of
+    ``final`` and ``reference`` for every aerosol, notebooks/sunward_zero). Never
     wider than ``cutoff_deg``; ``mild_cutoff_deg`` 0 (or not narrower) keeps ``cutoff_deg``, and
     so does a solver with fewer than :data:`MILD_CONE_MIN_TABLE_PHI` azimuth nodes
     (``table_phi``, when given)."""
