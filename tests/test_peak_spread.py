@@ -34,7 +34,7 @@ def test_spread_of_a_gaussian_is_the_poisson_sum_of_wider_gaussians():
         want = sum(poisson.pmf(k, tau) * 3.0 * _gauss(theta, np.sqrt(s_g**2 + k * s_q**2)) for k in n)
         want -= 3.0 * _gauss(theta, s_g)
         scale = 3.0 * _gauss(0.0, s_g)
-        assert np.max(np.abs(got[:, j] - want)) < 2e-3 * scale, tau
+        assert np.max(np.abs(got[:, j] - want)) < 1e-4 * scale, tau  # measured 1e-7 to 3e-6
     assert np.all(got[:, 0] == 0.0)  # tau = 0: nothing turned
 
 
