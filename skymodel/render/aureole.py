@@ -84,12 +84,17 @@ class PeakAureole:
         self.ring = 2.0 * np.pi * self.theta**2 * self.dln
         self.theta_floor = theta_min * 1e4
 
+    def on_grid(self, angles_deg, values) -> np.ndarray:
+        """Values (A, W) tabulated at ``angles_deg`` -> (n, W) on this grid, linear in angle as
+        the medium reads them, 0 beyond the last tabulated angle."""
+        th = np.radians(np.asarray(angles_deg, float))
+        return np.stack([np.interp(self.theta, th, values[:, i], right=0.0) for i in range(values.shape[1])], axis=1)
+
     def shape_on_grid(self, angles_deg, peak) -> np.ndarray:
         """Peak values (A, W) on the table's angles, linear in angle as the medium reads
         them -> normalised shape q (n, W) on this grid (integral over the small-angle plane
         = 1; zero where the peak is)."""
-        th = np.radians(np.asarray(angles_deg, float))
-        q = np.stack([np.interp(self.theta, th, peak[:, i], right=0.0) for i in range(peak.shape[1])], axis=1)
+        q = self.on_grid(angles_deg, peak)
         norm = self.ring @ q
         return np.where(norm > 0, q / np.where(norm > 0, norm, 1.0), 0.0)
 

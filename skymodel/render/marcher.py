@@ -342,7 +342,7 @@ def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> 
     to_full = SolverSpectrumMap.for_profile(wl_ms, profile)
     aureole = (peak_aureole_table(profile, medium, cone, top)
                if (s.peak_aureole and ms_field.orders > 1) else None)
-    spread = (peak_spread_table(profile, medium, cone, top, aureole[1])
+    spread = (peak_spread_table(profile, medium, cone, top, aureole[0], aureole[1])
               if (aureole is not None and s.peak_spread) else None)
     timings["multiple_scattering_s"] = time.perf_counter() - t1
     return SkySolution(optics_key(profile, s), s, medium, medium_ms, sun_table, ms_field, to_full, aureole, timings,
@@ -390,10 +390,11 @@ def _peak_shape(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: floa
 PEAK_SPREAD_MAX_DEG = 40.0
 
 
-def peak_spread_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: float, tau_grid):
+def peak_spread_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: float, theta_rad, tau_grid):
     """What the cut peak's turns do to the first scattering's non-peak part, per aerosol regime:
-    (R, n_theta, n_tau, W) float32 in sr^-1 on the peak-aureole table's angles (0-60 degrees,
-    radians) and peak optical depths ``tau_grid``, or None when no aerosol has a cut peak.
+    (R, n_theta, n_tau, W) float32 in sr^-1 at the angles from the sun ``theta_rad`` and peak
+    optical depths ``tau_grid`` (the peak-aureole table's, :func:`peak_aureole_table`: the
+    marcher reads both tables at one index), or None when no aerosol has a cut peak.
 
     The delta-M first scattering (:meth:`SkyMarcher._delta_m_first_scattering`) counts the
     capped phase function p_cap = min(p, p(cutoff)) through the scaled extinction: the light
@@ -406,27 +407,24 @@ def peak_spread_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_m
     (AOD 0.5, sun 5 degrees) puts the view 6 degrees above the sun 4 % above the Monte Carlo
     truth without the spread and 0.3 % with it (notebooks/sunward_zero). The table holds
     p_cap * K_tau - p_cap; p_cap is read within :data:`PEAK_SPREAD_MAX_DEG` of the sun."""
-    from skymodel.render.aureole import THETA_MAX_RAD, PeakAureole
+    from skymodel.render.aureole import PeakAureole
 
-    med = medium
-    if not np.any(med.forward_fraction > 0):
+    if not np.any(medium.forward_fraction > 0):
         return None
     machine = PeakAureole()
-    q = _peak_shape(profile, med, delta_m_cutoff_deg, top_altitude_m, machine)
-    theta = np.linspace(0.0, THETA_MAX_RAD, 601)
-    ang = np.radians(np.asarray(profile.aerosol_phase_angles_deg, dtype=float))
-    capped = med.truncated_phase * (1.0 - med.forward_fraction)[:, None, :]  # (R, A, W): min(p, p(cutoff))
+    q = _peak_shape(profile, medium, delta_m_cutoff_deg, top_altitude_m, machine)
+    angles = profile.aerosol_phase_angles_deg
+    capped = medium.truncated_phase * (1.0 - medium.forward_fraction)[:, None, :]  # (R, A, W): min(p, p(cutoff))
     far = np.radians(PEAK_SPREAD_MAX_DEG)
-    n_wl = capped.shape[2]
-    out = np.zeros((capped.shape[0], theta.size, np.size(tau_grid), n_wl), dtype=np.float32)
+    inside = machine.theta[:, None] < far
+    out = np.zeros((capped.shape[0], np.size(theta_rad), np.size(tau_grid), capped.shape[2]), dtype=np.float32)
     for r in range(capped.shape[0]):
-        if not np.any(med.forward_fraction[r] > 0):
+        if not np.any(medium.forward_fraction[r] > 0):
             continue
-        on_grid = np.stack([np.interp(machine.theta, ang, capped[r, :, w]) for w in range(n_wl)], axis=1)
-        at_far = np.array([np.interp(far, ang, capped[r, :, w]) for w in range(n_wl)])
+        at_far = np.array([np.interp(PEAK_SPREAD_MAX_DEG, angles, capped[r, :, w]) for w in range(capped.shape[2])])
         # the pattern above its value at the far angle (a constant is not changed by the spread)
-        g = np.where(machine.theta[:, None] < far, np.maximum(on_grid - at_far[None, :], 0.0), 0.0)
-        out[r] = machine.spread_table(q, g, tau_grid, theta)
+        g = np.where(inside, np.maximum(machine.on_grid(angles, capped[r]) - at_far[None, :], 0.0), 0.0)
+        out[r] = machine.spread_table(q, g, tau_grid, theta_rad)
     return out
 
 
