@@ -1,45 +1,54 @@
 """Where along a view ray the solver's source comes from, with and without the peak term (`final`,
 650 nm), in altitude bins at `final`'s lowest altitude nodes: each bin's share of the ray's sum and
-the term's part of it. usage: along.py scene views   (e.g. desert:-4 89/90,89/8.666)"""
+the term's part of it. usage: along.py scene views   (e.g. desert:-4 89/90,89/8.666)
+
+The per-sample terms are those `SkyMarcher._gather_ms` sums (its `_column(weight, source)`),
+recorded as it makes them."""
 import sys
+
 import numpy as np
+
 sys.path[:0] = ["notebooks/sunward_zero"]
-import _setup as su
-from skymodel.render.marcher import SkyMarcher
+import _setup as su  # noqa: E402
+from skymodel.render import marcher as mm  # noqa: E402
+
 scene, views = sys.argv[1], sys.argv[2].split(",")
 sc, prof, wl, idx = su.scene(scene)
 keep = sc.view_rows(views)
 rec = {}
-orig = SkyMarcher._gather_ms
-def gm(self, rings, D):
-    mus = self._sun_cosines(rings, D)
-    mu = np.broadcast_to(rings.mu[:, None, :], mus.shape)
-    vs = (D @ self.sun)[..., None]
-    den = np.sqrt(np.clip((1 - mu * mu) * (1 - mus * mus), 0.0, None))
-    cphi = np.where(den > 1e-12, (vs - mu * mus) / np.where(den > 1e-12, den, 1.0), 1.0)
-    phi = np.arccos(np.clip(cphi, -1.0, 1.0))
-    from skymodel.render.medium import step_transmittance
-    step = self.medium_ms.extinction_scaled.at(rings.h) * rings.dt[..., None]
-    weight = step_transmittance(step, dtype=np.float32) * rings.dt[..., None].astype(np.float32)
-    scale = None if self.field.scattering is None else self.field.scattering.at(rings.h)[:, None]
-    src = self.field.source_at(np.broadcast_to(rings.h[:, None, :], mus.shape), mu, phi, mus, scale=scale)
-    rec["per"] = weight[:, None] * src; rec["h"] = rings.h; rec["mus"] = mus; rec["mu"] = mu
-    rec["t"] = np.cumsum(rings.dt, axis=-1)
-    return orig(self, rings, D)
-SkyMarcher._gather_ms = gm
+orig_gather, orig_column = mm.SkyMarcher._gather_ms, mm._column
+
+
+def gather(self, rings, D):
+    rec.update(h=rings.h, mu=rings.mu, t=np.cumsum(rings.dt, axis=-1), mus=self._sun_cosines(rings, D))
+    rec["on"] = True
+    try:
+        return orig_gather(self, rings, D)
+    finally:
+        rec["on"] = False
+
+
+def column(weight, values):
+    if rec.get("on"):
+        rec["per"] = weight.astype(values.dtype)[:, None] * values  # (G, A, S, W): the summed terms
+    return orig_column(weight, values)
+
+
+mm.SkyMarcher._gather_ms, mm._column = gather, column
 res = {}
 for tag, var in (("fin", {}), ("nopd", {"peak_diffuse": False})):
     m = su.marcher(sc, prof, **var)
-    wms = np.asarray(m.field.wavelengths_nm); j650 = int(np.argmin(np.abs(wms - 650)))
+    j650 = int(np.argmin(np.abs(np.asarray(m.field.wavelengths_nm) - 650)))
     res[tag] = []
     for i in keep:
-        m.radiance(sc.dirs[i:i+1])
-        per = rec["per"][0, 0, :, j650]; res[tag].append((per, rec["h"][0], rec["mus"][0, 0], rec["mu"][0, 0], rec["t"][0]))
+        m.radiance(sc.dirs[i:i + 1])
+        res[tag].append((rec["per"][0, 0, :, j650], rec["h"][0], rec["mus"][0, 0], rec["mu"][0], rec["t"][0]))
+edges = [0, 43, 86, 129, 265, 411, 566, 1000, 100000]
 for k, i in enumerate(keep):
-    pf, h, mus, mu, t = res["fin"][k]; pn = res["nopd"][k][0]
+    pf, h, mus, mu, t = res["fin"][k]
+    pn = res["nopd"][k][0]
     tot = pf.sum()
     print(f"{su.bt.view_label(sc.views[i])}: solver source fin {pf.sum():.4g} nopd {pn.sum():.4g} (+{100*(pf.sum()/pn.sum()-1):.1f} %)")
-    edges = [0, 43, 86, 129, 265, 411, 566, 1000, 100000]
     for a, b in zip(edges[:-1], edges[1:]):
         s = (h >= a) & (h < b)
         if s.any():
