@@ -25,9 +25,9 @@ kept = []
 batch = mcm._trace_batch_sunlit if estimator != "nee" else mcm._trace_batch
 
 
-def recording(*args, **kw):
-    c = batch(*args, **kw)
-    kept.append(c.copy())
+def recording(med, origin, dirs, *rest, **kw):
+    c = batch(med, origin, dirs, *rest, **kw)
+    kept.append((dirs.copy(), c.copy()))
     return c
 
 
@@ -38,19 +38,14 @@ else:
 t = time.time()
 r = mcm.trace_radiance(prof, sc.dirs[keep], sc.elev, bt.SUN_AZIMUTH, n_paths=paths, seed=seed,
                        estimator=estimator, sun_guide=guide)
-# trace_radiance's layout per chunk: (direction, wavelength=1, path); chunks run direction-major
-scores = np.zeros((len(keep), paths))
-n_filled = np.zeros(len(keep), dtype=int)
-d0 = 0
-chunks = iter(kept)
-dir_chunk = max(1, mcm._MAX_PATHS_PER_BATCH // paths)
-while d0 < len(keep):
-    nd = min(dir_chunk, len(keep) - d0)
-    path_chunk = max(1, min(paths, mcm._MAX_PATHS_PER_BATCH // nd))
-    for p0 in range(0, paths, path_chunk):
-        npc = min(path_chunk, paths - p0)
-        scores[d0:d0 + nd, p0:p0 + npc] = next(chunks).reshape(nd, npc)
-    d0 += nd
+# each batch's rows are paths of some of the views: sort them to their view by direction
+views_unit = sc.dirs[keep] / np.linalg.norm(sc.dirs[keep], axis=1, keepdims=True)
+per_view = [[] for _ in keep]
+for d, c in kept:
+    which = np.argmax(d @ views_unit.T, axis=1)
+    for j in range(len(keep)):
+        per_view[j].append(c[which == j])
+scores = np.stack([np.concatenate(v) for v in per_view])
 assert np.allclose(scores.mean(axis=1), r.radiance[:, 0], rtol=1e-12, atol=0)
 np.savez_compressed(out, scores=np.sort(scores, axis=1), mean=r.radiance[:, 0], se=r.stderr[:, 0],
                     keep=keep, wl=wl, guide=guide, seed=seed, seconds=time.time() - t, n=paths,

@@ -43,11 +43,12 @@ def hill(top, k):
 
 
 rng = np.random.default_rng(0)
-pooled = []  # (keep, mean per unit irradiance, se per unit irradiance, paths)
+pooled = []  # (keep, mean per unit irradiance, se per unit irradiance, paths, wavelength index)
 for f in args[1].split(","):
     d = dict(np.load(f))
-    if "wl" not in d:  # an mc_check.py run: the truth's three wavelengths, 650 nm its last
-        pooled.append((d["keep"], d["mean"][:, -1] / e0[-1], d["se"][:, -1] / e0[-1], float(d["n"])))
+    if "wl" not in d:  # an mc_check.py run: the truth's three wavelengths, pooled at 650 nm
+        w = wls.index(650.0)
+        pooled.append((d["keep"], d["mean"][:, w] / e0[w], d["se"][:, w] / e0[w], float(d["n"]), w))
         continue
     full = "scores" in d
     top_all = d["scores"][:, -TOP:] if full else d["scores_top"]
@@ -59,10 +60,10 @@ for f in args[1].split(","):
     print(f"{os.path.basename(f)}: sun_guide {float(d['guide'])}, seed {int(d['seed'])}, {n} paths, {float(d['seconds']):.0f} s")
     print("view | run / truth - 1 (%) | run se, truth se (%) | top 1/10/100 share (%) | Hill alpha k=100/1000"
           + (" | median block mean / mean, n=1e3/1e4/1e5" if full else ""))
-    pooled.append((d["keep"], sums / n / float(d["e_sun"]), d["se"] / float(d["e_sun"]), float(n)))
+    wi = wls.index(float(d["wl"]))
+    pooled.append((d["keep"], sums / n / float(d["e_sun"]), d["se"] / float(d["e_sun"]), float(n), wi))
     for j, i in enumerate(d["keep"]):
         m = sums[j] / n
-        wi = wls.index(float(d["wl"]))
         rel = (m / float(d["e_sun"])) / (mc["mean"][i, wi] / e0[wi]) - 1
         top = top_all[j]
         share = [top[-k:].sum() / sums[j] for k in (1, 10, 100)]
@@ -77,12 +78,16 @@ for f in args[1].split(","):
 
 march, _, _ = bt.run_march(sc, "final")
 views = sorted(set(int(i) for k, *_ in pooled for i in k))
-print(f"pooled, {len(pooled)} runs, 650 nm: view | paths | pooled / truth - 1 (combined se) | final / pooled - 1 (pooled se), %")
+wi = {p[-1] for p in pooled}
+if len(wi) != 1:
+    sys.exit("tail_stats.py: the runs to pool must be at one wavelength")
+wi = wi.pop()
+print(f"pooled, {len(pooled)} runs, {wls[wi]:.0f} nm: view | paths | pooled / truth - 1 (combined se) | final / pooled - 1 (pooled se), %")
 for i in views:
-    got = [(m[list(k).index(i)], s[list(k).index(i)], n) for k, m, s, n in pooled if i in k]
+    got = [(m[list(k).index(i)], s[list(k).index(i)], n) for k, m, s, n, _ in pooled if i in k]
     n = np.array([g[2] for g in got])
     m = sum(g[0] * w for g, w in zip(got, n)) / n.sum()
     s = np.sqrt(sum((g[1] * w) ** 2 for g, w in zip(got, n))) / n.sum()
-    t, ts = mc["mean"][i, -1] / e0[-1], mc["se"][i, -1] / e0[-1]
+    t, ts = mc["mean"][i, wi] / e0[wi], mc["se"][i, wi] / e0[wi]
     print(f"{bt.view_label(sc.views[i])} | {int(n.sum())} | {100 * (m / t - 1):+.2f} ({100 * np.hypot(s / m, ts / t):.2f}) | "
-          f"{100 * (march[i, -1] / m - 1):+.2f} ({100 * s / m:.2f})")
+          f"{100 * (march[i, wi] / m - 1):+.2f} ({100 * s / m:.2f})")
