@@ -14,11 +14,12 @@ prof, mc = sc.load_mc()
 e0 = np.asarray(prof.solar_irradiance)[None, :]
 runs = [np.load(f) for f in sys.argv[2].split(",")]
 keep = runs[0]["keep"]
-n = np.array([float(r["n"]) for r in runs])
-mean = sum(r["mean"] * k for r, k in zip(runs, n)) / n.sum()  # weighted by paths
-se = np.sqrt(sum((r["se"] * k) ** 2 for r, k in zip(runs, n))) / n.sum()
+mean, se, n = runs[0]["mean"], runs[0]["se"], float(runs[0]["n"])
+for r in runs[1:]:  # weighted by paths, as bench_truth pools its runs
+    mean, se = bt._pooled(mean, se, n, r["mean"], r["se"], float(r["n"]))
+    n += float(r["n"])
 fin = np.load(os.path.join(os.environ.get("TRUTH_MISSES_OUT", ".cache/truth_misses"), f"var_{sc.name}_fin.npz"))["r"]
-print(f"{len(runs)} runs, {int(n.sum())} paths per view; % at 450/550/650 nm")
+print(f"{len(runs)} runs, {int(n)} paths per view; % at 450/550/650 nm")
 print("view | new / truth - 1 | combined se | final / new - 1 | final / truth - 1")
 f = lambda x: "/".join(f"{100 * y:+.2f}" for y in x)  # noqa: E731
 for j, i in enumerate(keep):

@@ -84,10 +84,12 @@ if len(wi) != 1:
 wi = wi.pop()
 print(f"pooled, {len(pooled)} runs, {wls[wi]:.0f} nm: view | paths | pooled / truth - 1 (combined se) | final / pooled - 1 (pooled se), %")
 for i in views:
-    got = [(m[list(k).index(i)], s[list(k).index(i)], n) for k, m, s, n, _ in pooled if i in k]
-    n = np.array([g[2] for g in got])
-    m = sum(g[0] * w for g, w in zip(got, n)) / n.sum()
-    s = np.sqrt(sum((g[1] * w) ** 2 for g, w in zip(got, n))) / n.sum()
+    m = s = n = 0.0
+    for k, mk, sk, nk, _ in pooled:  # weighted by paths, as bench_truth pools its runs
+        if i in k:
+            j = list(k).index(i)
+            m, s = bt._pooled(m, s, n, mk[j], sk[j], nk)
+            n += nk
     t, ts = mc["mean"][i, wi] / e0[wi], mc["se"][i, wi] / e0[wi]
-    print(f"{bt.view_label(sc.views[i])} | {int(n.sum())} | {100 * (m / t - 1):+.2f} ({100 * np.hypot(s / m, ts / t):.2f}) | "
+    print(f"{bt.view_label(sc.views[i])} | {int(n)} | {100 * (m / t - 1):+.2f} ({100 * np.hypot(s / m, ts / t):.2f}) | "
           f"{100 * (march[i, wi] / m - 1):+.2f} ({100 * s / m:.2f})")
