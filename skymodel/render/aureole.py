@@ -131,7 +131,7 @@ class PeakAureole:
         qk = self.transform(q)
         return self._inverse(np.exp(-tau) * (np.expm1(tau * qk) - tau * qk), theta_out)
 
-    def correction_table(self, q, tau_grid, theta_out) -> np.ndarray:
+    def correction_table(self, q, tau_grid, theta_out, qk=None) -> np.ndarray:
         """Peak light that the marcher's single scattering leaves out, per unit peak
         scattering at a point on a view ray, as a table (len(theta_out), len(tau_grid), W)
         in sr^-1; tau is the peak optical depth of the sun path to the point plus the
@@ -146,9 +146,10 @@ class PeakAureole:
         scatterings of the whole line. The n = 0 term, exp(-tau) q, is the direct beam
         scattered once into the peak, which the marcher's single scattering holds; the
         rest is, in Hankel space, exp(-tau) (exp(tau Q) - 1 - tau Q) / tau. One tau node
-        at a time (memory ~ n * W * 8 B * 4)."""
+        at a time (memory ~ n * W * 8 B * 4). ``qk``: q's :meth:`transform`, when the
+        caller has it."""
         taus = np.asarray(tau_grid, float)
-        qk = self.transform(q)  # (n, W)
+        qk = self.transform(q) if qk is None else qk  # (n, W)
         out = np.zeros((len(theta_out), taus.size, qk.shape[1]))
         for j, tau in enumerate(taus):
             if tau > 0:
@@ -156,7 +157,7 @@ class PeakAureole:
                 out[:, j] = self._inverse(np.exp(-tau) * (np.expm1(x) - x) / tau, theta_out)
         return out
 
-    def spread_table(self, q, g, tau_grid, theta_out) -> np.ndarray:
+    def spread_table(self, q, g, tau_grid, theta_out, qk=None) -> np.ndarray:
         """What the peak's small turns do to a smooth angular pattern ``g``: (g * K_tau) - g
         at ``theta_out`` (radians) for every peak optical depth of ``tau_grid``,
         (len(theta_out), len(tau_grid), W) in g's units, where
@@ -168,13 +169,14 @@ class PeakAureole:
         ``g`` (n, W) on this grid: a radially symmetric, non-negative pattern that vanishes
         beyond some angle; the spread keeps its integral over the plane, so each column of
         the result integrates to 0. In Hankel space G (exp(tau (Q - 1)) - 1). Used for the
-        first scattering's non-peak part (:func:`skymodel.render.marcher.peak_spread_table`)."""
+        first scattering's non-peak part (:func:`skymodel.render.marcher.peak_spread_table`).
+        ``qk``: q's :meth:`transform`, when the caller has it."""
         taus = np.asarray(tau_grid, float)
         g = np.asarray(g, float)
         norm = self.ring @ g  # (W,)
         shape = np.where(norm > 0, g / np.where(norm > 0, norm, 1.0), 0.0)
         gk = self.transform(shape) * norm[None, :]
-        qk = self.transform(q)
+        qk = self.transform(q) if qk is None else qk
         out = np.zeros((len(theta_out), taus.size, g.shape[1]))
         for j, tau in enumerate(taus):
             if tau > 0:

@@ -340,38 +340,43 @@ def solve_sky(profile, settings: MarchSettings | None = None, progress=None) -> 
         mu_horizon_nodes=s.table_mu_horizon_nodes, spherical_coarse_phi=s.spherical_coarse_phi,
         coarse_phi_from_order=s.coarse_phi_from_order, progress=progress)
     to_full = SolverSpectrumMap.for_profile(wl_ms, profile)
-    aureole = (peak_aureole_table(profile, medium, cone, top)
-               if (s.peak_aureole and ms_field.orders > 1) else None)
-    spread = (peak_spread_table(profile, medium, cone, top, aureole[0], aureole[1])
+    shape = peak_shape(profile, medium, cone, top) if (s.peak_aureole and ms_field.orders > 1) else None
+    aureole = peak_aureole_table(profile, medium, cone, top, shape) if shape is not None else None
+    spread = (peak_spread_table(profile, medium, cone, top, aureole[0], aureole[1], shape)
               if (aureole is not None and s.peak_spread) else None)
     timings["multiple_scattering_s"] = time.perf_counter() - t1
     return SkySolution(optics_key(profile, s), s, medium, medium_ms, sun_table, ms_field, to_full, aureole, timings,
                        spread)
 
 
-def peak_aureole_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: float):
+def peak_aureole_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: float, shape=None):
     """Table of the peak light that delta-M leaves out (:mod:`skymodel.render.aureole`):
     (theta grid in radians, peak optical depth grid, table (n_theta, n_tau, n_wl) in
-    sr^-1), or None when the aerosols have no truncated peak."""
-    from skymodel.render.aureole import THETA_MAX_RAD, PeakAureole
+    sr^-1), or None when the aerosols have no truncated peak. ``shape``: the medium's
+    :func:`peak_shape`, when the caller has it."""
+    from skymodel.render.aureole import THETA_MAX_RAD
+
+    shape = shape or peak_shape(profile, medium, delta_m_cutoff_deg, top_altitude_m)
+    if shape is None:
+        return None
+    machine, q, qk = shape
+    theta = np.linspace(0.0, THETA_MAX_RAD, 601)
+    tau = np.concatenate([[0.0], np.geomspace(0.005, AUREOLE_MAX_PEAK_TAU, 47)])
+    return theta, tau, machine.correction_table(q, tau, theta, qk=qk)
+
+
+def peak_shape(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: float):
+    """The cut peak the aureole and the peak spread turn light by, once per medium:
+    ``(machine, q, qk)``, a :class:`~skymodel.render.aureole.PeakAureole`, the normalised
+    shape q (n, W) on its angle grid (the regimes' cut peaks weighted by their column peak
+    optical depth) and q's Hankel transform; None when no aerosol has a cut peak."""
+    from skymodel.numerics import trapezoid
+    from skymodel.render.aureole import PeakAureole, peak_part
 
     if not np.any(medium.forward_fraction > 0):
         return None
-    machine = PeakAureole()
-    q = _peak_shape(profile, medium, delta_m_cutoff_deg, top_altitude_m, machine)
-    theta = np.linspace(0.0, THETA_MAX_RAD, 601)
-    tau = np.concatenate([[0.0], np.geomspace(0.005, AUREOLE_MAX_PEAK_TAU, 47)])
-    return theta, tau, machine.correction_table(q, tau, theta)
-
-
-def _peak_shape(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: float, machine) -> np.ndarray:
-    """One normalised peak shape q (n, W) on ``machine``'s angle grid (a
-    :class:`~skymodel.render.aureole.PeakAureole`): the regimes' cut peaks weighted by their
-    column peak optical depth."""
-    from skymodel.numerics import trapezoid
-    from skymodel.render.aureole import peak_part
-
     prof, med = profile, medium
+    machine = PeakAureole()
     z = np.linspace(0.0, top_altitude_m, 2001)
     col = np.stack([trapezoid(lr.at(z), z, axis=0) for lr in med.aerosol]) * med.forward_fraction  # (R, W)
     total = col.sum(axis=0)
@@ -381,7 +386,7 @@ def _peak_shape(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: floa
         if np.any(col[r] > 0):
             share = np.where(total > 0, col[r] / np.where(total > 0, total, 1.0), 0.0)
             q += machine.shape_on_grid(prof.aerosol_phase_angles_deg, peaks[r]) * share
-    return q
+    return machine, q, machine.transform(q)
 
 
 #: Angle from the sun (degrees) out to which :func:`peak_spread_table` spreads the first
@@ -390,7 +395,8 @@ def _peak_shape(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: floa
 PEAK_SPREAD_MAX_DEG = 40.0
 
 
-def peak_spread_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: float, theta_rad, tau_grid):
+def peak_spread_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_m: float, theta_rad, tau_grid,
+                      shape=None):
     """What the cut peak's turns do to the first scattering's non-peak part, per aerosol regime:
     (R, n_theta, n_tau, W) float32 in sr^-1 at the angles from the sun ``theta_rad`` and peak
     optical depths ``tau_grid`` (the peak-aureole table's, :func:`peak_aureole_table`: the
@@ -406,13 +412,12 @@ def peak_spread_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_m
     the flat top meets the steep fall of a sharp peak, it does: a 6-degree cone in desert dust
     (AOD 0.5, sun 5 degrees) puts the view 6 degrees above the sun 4 % above the Monte Carlo
     truth without the spread and 0.3 % with it (notebooks/sunward_zero). The table holds
-    p_cap * K_tau - p_cap; p_cap is read within :data:`PEAK_SPREAD_MAX_DEG` of the sun."""
-    from skymodel.render.aureole import PeakAureole
-
-    if not np.any(medium.forward_fraction > 0):
+    p_cap * K_tau - p_cap; p_cap is read within :data:`PEAK_SPREAD_MAX_DEG` of the sun.
+    ``shape``: the medium's :func:`peak_shape`, when the caller has it."""
+    shape = shape or peak_shape(profile, medium, delta_m_cutoff_deg, top_altitude_m)
+    if shape is None:
         return None
-    machine = PeakAureole()
-    q = _peak_shape(profile, medium, delta_m_cutoff_deg, top_altitude_m, machine)
+    machine, q, qk = shape
     angles = profile.aerosol_phase_angles_deg
     capped = medium.truncated_phase * (1.0 - medium.forward_fraction)[:, None, :]  # (R, A, W): min(p, p(cutoff))
     far = np.radians(PEAK_SPREAD_MAX_DEG)
@@ -424,7 +429,7 @@ def peak_spread_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_m
         at_far = np.array([np.interp(PEAK_SPREAD_MAX_DEG, angles, capped[r, :, w]) for w in range(capped.shape[2])])
         # the pattern above its value at the far angle (a constant is not changed by the spread)
         g = np.where(inside, np.maximum(machine.on_grid(angles, capped[r]) - at_far[None, :], 0.0), 0.0)
-        out[r] = machine.spread_table(q, g, tau_grid, theta_rad)
+        out[r] = machine.spread_table(q, g, tau_grid, theta_rad, qk=qk)
     return out
 
 
