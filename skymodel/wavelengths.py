@@ -109,3 +109,20 @@ def ascending_order(wavelengths, *, parameter: str = "wavelengths"):
     back = np.empty_like(order)
     back[order] = np.arange(order.size)
     return wl, back
+
+
+def spread_indices(wavelengths_nm, step_nm: float) -> np.ndarray:
+    """Indices of wavelengths spread evenly over an ascending grid (nm), at most about
+    ``step_nm`` apart, both ends included: ceil(range / step) + 1 targets evenly spaced in
+    wavelength, each the nearest grid wavelength (its fractional index on the grid, rounded;
+    a tie goes to the even index), duplicates dropped. On an evenly spaced grid this is
+    evenly spaced in index. Used for the probe wavelengths at which costly corrections are
+    computed and read between (the peak paths, the solver's spherical correction)."""
+    wl = np.asarray(wavelengths_nm, float)
+    n_probe = int(np.clip(np.ceil((wl[-1] - wl[0]) / max(step_nm, 1e-9) - 1e-9) + 1, 1, wl.size))
+    steps = np.diff(wl)
+    if steps.size and np.ptp(steps) <= 1e-9 * abs(steps[0]):  # evenly spaced: in index
+        at = np.linspace(0, wl.size - 1, n_probe)
+    else:
+        at = np.interp(np.linspace(wl[0], wl[-1], n_probe), wl, np.arange(wl.size, dtype=float))
+    return np.unique(np.round(at).astype(int))

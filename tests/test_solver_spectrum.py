@@ -11,11 +11,10 @@ from skymodel.errors import SkymodelInputError
 from skymodel.render.marcher import (MarchSettings, SkyMarcher, settings_solver_wavelengths, solve_sky,
                                      solver_wavelengths)
 from skymodel.render.memory import _n_solver_wavelengths
-from skymodel.render.multiple_scattering import probe_indices
 from skymodel.render.quality import quality_settings
 from skymodel.render.solver_spectrum import SolverSpectrumMap
 from skymodel.validation.truth import view_directions
-from skymodel.wavelengths import default_wavelengths
+from skymodel.wavelengths import default_wavelengths, spread_indices
 
 WL = default_wavelengths(5.0)
 
@@ -160,7 +159,7 @@ def test_final_thins_its_solver_wavelengths_outside_the_eyes_band():
     red = np.arange(700.0, 780.1, 5.0)
     np.testing.assert_allclose(solver_wavelengths(red, 10.0, 20.0), np.arange(700.0, 780.1, 20.0))
     # the spherical correction's probes stay 100 nm apart in wavelength on the uneven grid
-    np.testing.assert_array_equal(wl[probe_indices(wl, 100.0)], [380.0, 480.0, 580.0, 680.0, 780.0])
+    np.testing.assert_array_equal(wl[spread_indices(wl, 100.0)], [380.0, 480.0, 580.0, 680.0, 780.0])
     # and the memory guard counts what the solver will hold
     assert _n_solver_wavelengths(WL.size, WL, s) == 32
 

@@ -23,7 +23,7 @@ from skymodel.numerics import linear_interp_matrix
 from skymodel.render.marcher import SkyMarcher, settings_solver_wavelengths
 from skymodel.render.quality import QUALITIES
 from skymodel.render.solver_spectrum import SolverSpectrumMap
-from skymodel.wavelengths import default_wavelengths
+from skymodel.wavelengths import default_wavelengths, spread_indices
 from skymodel.colorimetry import cmf_weights
 
 TERMS = {"tauR": "R", "tauT": "T", "tauTO": "TO", "tauRA": "RA", "tauROA": "ROA"}
@@ -76,7 +76,7 @@ for name in args[0].split(","):
     views, dirs, keep = scene_views(sc, bt.SUN_AZIMUTH)
     s = replace(QUALITIES["final"].settings, spherical_probe_step_nm=10.0)
     ws = settings_solver_wavelengths(wl, s)
-    idx = ms.probe_indices(ws, QUALITIES["final"].settings.spherical_probe_step_nm)
+    idx = spread_indices(ws, QUALITIES["final"].settings.spherical_probe_step_nm)
     pw = sc.atm.optical_profile(list(ws))
     tau = {"R": pw.vertical_optical_depth(pw.rayleigh_scattering), "O": pw.vertical_optical_depth(pw.ozone_absorption),
            "A": pw.vertical_optical_depth(pw.aerosol_scattering + pw.aerosol_absorption)}

@@ -7,6 +7,7 @@ import numpy as np
 sys.path[:0] = [os.path.dirname(os.path.abspath(__file__))]
 import _setup as su  # noqa: E402
 import skymodel.render.peak_paths as pp  # noqa: E402
+from skymodel.wavelengths import spread_indices  # noqa: E402
 from skymodel.render.peak_diffuse import peak_of  # noqa: E402
 from skymodel.render.marcher import SkyMarcher  # noqa: E402
 
@@ -21,7 +22,7 @@ scene, views = sys.argv[1], sys.argv[2].split(",")
 MODE = os.environ.get("MODE", "replace")
 sc, prof, wl, _ = su.scene(scene)
 m = su.marcher(sc, prof)
-pi = pp.probe_indices(wl); probes = wl[pi]
+pi = spread_indices(wl, pp.PROBE_STEP_NM); probes = wl[pi]
 med = m.medium
 kern = pp._kernels(prof, med, pi, np.radians(np.arange(-13, 14) * 1.0))
 regs = [r for r, _ in kern]

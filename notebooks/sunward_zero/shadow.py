@@ -5,13 +5,14 @@ import numpy as np
 sys.path[:0] = [os.path.dirname(os.path.abspath(__file__))]
 import _setup as su  # noqa: E402
 import skymodel.render.peak_paths as pp  # noqa: E402
+from skymodel.wavelengths import spread_indices  # noqa: E402
 src = inspect.getsource(pp.bent_minus_straight)
 src = src.replace("todo = np.nonzero(vis > 1e-6)", "todo = np.nonzero((vis <= 1e-6) & (ee > -14.0))")
 src = src.replace("out[i, j] = d / vis[i, j][:, None]", "out[i, j] = d")
 assert "ee > -14.0" in src and "out[i, j] = d\n" in src
 ns = dict(pp.__dict__); exec(src, ns); bms = ns["bent_minus_straight"]
 sc, prof, wl, _ = su.scene(sys.argv[1])
-pi = pp.probe_indices(wl); probes = wl[pi]
+pi = spread_indices(wl, pp.PROBE_STEP_NM); probes = wl[pi]
 m = su.marcher(sc, prof)
 med = m.medium
 truth, _, base = su.truth_and_base(sc)

@@ -76,6 +76,7 @@ from skymodel.render.rays import altitude_along, atmosphere_segment
 from skymodel.render.solver_spectrum import SolverSpectrumMap, ozone_column
 from skymodel.render.sun_transmittance import SUN_ANGULAR_RADIUS_RAD, SunTransmittance, horizon_mu
 from skymodel.render.threads import SOLVER_THREADS, chunks_in_threads
+from skymodel.wavelengths import spread_indices
 
 
 #: Share of the sun-angle nodes below the horizon (:func:`sun_elevation_nodes`). Measured against the
@@ -1429,21 +1430,6 @@ def _first_order_spherical(sun_table, profile, *, species_sigma_at, species_phas
     return out  # (n_wl, rays, n_phi * n_mus)
 
 
-def probe_indices(wavelengths_nm, step_nm: float) -> np.ndarray:
-    """Indices of the spherical correction's probe wavelengths among the solver's (ascending, nm):
-    about ``step_nm`` apart, evenly spaced in wavelength, both ends included: the fractional
-    index of each target wavelength, rounded (on an evenly spaced grid, evenly spaced in index;
-    on ``final``'s, 10 nm inside 440-660 nm and 20 nm outside, at 380, 480, ..., 780 nm still)."""
-    wl = np.asarray(wavelengths_nm, float)
-    n_probe = int(np.clip(np.ceil((wl[-1] - wl[0]) / max(step_nm, 1e-9)) + 1, 1, wl.size))
-    steps = np.diff(wl)
-    if steps.size and np.ptp(steps) <= 1e-9 * abs(steps[0]):  # evenly spaced: in index, as ever
-        at = np.linspace(0, wl.size - 1, n_probe)
-    else:
-        at = np.interp(np.linspace(wl[0], wl[-1], n_probe), wl, np.arange(wl.size, dtype=float))
-    return np.unique(np.round(at).astype(int))
-
-
 class _SphericalTransport:
     """Transport of a higher-order source J_n along the grid rays with the sun angle
     of every point, as a correction to the independent-column transport.
@@ -1494,7 +1480,7 @@ class _SphericalTransport:
         if self.coarse:
             phi_nodes = coarse_azimuths(phi_nodes)
         wl = np.asarray(wavelengths_nm, float)
-        self.probe = probe_indices(wl, probe_step_nm)
+        self.probe = spread_indices(wl, probe_step_nm)
         # probes -> every solver wavelength (applied to the factor in float32: in float64 it was the
         # solve's largest transient array)
         self.to_all = (None if self.probe.size == wl.size

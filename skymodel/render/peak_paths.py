@@ -66,6 +66,7 @@ from skymodel.render.medium import LowRank
 from skymodel.render.peak_diffuse import peak_of, projected_kernel
 from skymodel.render.sun_transmittance import horizon_mu
 from skymodel.render.threads import SOLVER_THREADS, in_threads
+from skymodel.wavelengths import spread_indices
 
 #: Nodes whose sun stands higher than this above the local horizon (degrees) keep delta-M's beam.
 MAX_ELEVATION_DEG = 20.0
@@ -101,17 +102,6 @@ LINE_LENGTH_M = 800e3
 PROBE_STEP_NM = 50.0
 #: Nodes per batch (memory ~ batch x offsets x steps x ~80 bytes).
 NODE_BATCH = 64
-
-
-def probe_indices(wavelengths_nm, n: int | None = None) -> np.ndarray:
-    """Indices of ``n`` wavelengths spread evenly over the grid (the ends included); by
-    default as many as keep them :data:`PROBE_STEP_NM` apart at most."""
-    wl = np.asarray(wavelengths_nm, float)
-    if n is None:
-        n = int(np.ceil((wl.max() - wl.min()) / PROBE_STEP_NM - 1e-9)) + 1
-    n = int(n)
-    targets = np.linspace(wl.min(), wl.max(), min(n, wl.size))
-    return np.unique([int(np.argmin(np.abs(wl - t))) for t in targets])
 
 
 def offset_nodes(cutoff_deg: float) -> np.ndarray:
@@ -184,7 +174,7 @@ def bent_minus_straight(sun_table, profile, medium, cutoff_deg: float, altitudes
     quadrature so that its error cancels where the two differ little."""
     st = sun_table
     wl = np.asarray(profile.wavelengths_nm, float)
-    pi = probe_indices(wl)
+    pi = spread_indices(wl, PROBE_STEP_NM)
     probes = wl[pi]
     hh = np.broadcast_to(np.asarray(altitudes_m, float)[:, None], np.shape(elevations_deg))
     ee = np.asarray(elevations_deg, float)
@@ -288,7 +278,7 @@ def bent_beam_depth(sun_table, profile, medium, cutoff_deg: float, *, true_mediu
     d = d_coarse[kc] * (1.0 - fc) + d_coarse[kc + 1] * fc
     if not np.any(d):
         return probes, np.zeros((n_h, n_x, probes.size))
-    pi = probe_indices(profile.wavelengths_nm)
+    pi = spread_indices(profile.wavelengths_nm, PROBE_STEP_NM)
     hh, xx = np.meshgrid(st.h_nodes, st.x_nodes, indexing="ij")
     mu = st._mu_from_x(hh, xx)
     elev = np.degrees(np.arcsin(mu)) - horizon_elevation_deg(st, hh)  # above the local horizon
