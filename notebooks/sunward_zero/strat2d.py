@@ -1,7 +1,7 @@
 """The peak's light above a low sun: the aureole's one-line (plane-wave) counting against a
 small-angle transport in the sun's vertical plane, on the same medium and kernel.
 
-usage: [DZ=25] strat2d.py scene wavelength_nm offsets_deg [x_max_km] [step_m]
+usage: [DZ=25] [PLANE=1 [N_ALPHA=40]] [SPREAD=1] strat2d.py scene wavelength_nm offsets_deg [x_max_km] [step_m]
   e.g. strat2d.py desert:0 650 2,3,4,5,6,8 500 250   (offsets: degrees above the sun)
 
 Both models keep only the aerosols' cut peak as scattering (projected on the elevation axis: the
@@ -23,7 +23,10 @@ travels toward -X; delta its global elevation, the sun's e; altitude z = Y + X^2
 
 Printed per view: the single turn, the two models' light of two or more turns and their ratio,
 per unit solar irradiance and per radian of elevation: the elevation marginal (the radiance
-integrated over azimuth), not the radiance in the sun's vertical plane."""
+integrated over azimuth). PLANE=1: the radiance in the sun's vertical plane instead (sr^-1; the
+march at N_ALPHA azimuthal frequencies, see below). SPREAD=1: the first non-peak scattering with
+the peak's turns before and after it, one line (peak_spread_table's p_cap * K_tau) against the
+transport (marginal)."""
 import os
 import sys
 
@@ -204,6 +207,81 @@ def one_line_at(Ks, xs, w, tau, off):
 print(f"{scene} (sun {sc.elev:g} deg) {wl_nm:.0f} nm, cone {cone:.0f} deg, X_max {x_max / 1e3:.0f} km, "
       f"step {h:.0f} m, dz {dz:g} m; column peak depth {np.trapz(sig_p, z):.3f}, scaled {np.trapz(sig_s, z):.3f}")
 rays = {off: view_ray(off) for off in offsets}
+if os.environ.get("SPREAD"):
+    # SPREAD=1 (elevation marginal): the first non-peak scattering (the capped phase functions,
+    # within SPREAD_DEG of the sun, projected on the elevation axis) with any number of peak turns
+    # before and after it: the one-line count (what peak_spread_table adds to the delta-M first
+    # scattering: p_cap * K_tau, tau of sun path plus view path) against the transport, where a
+    # second population B (once scattered by p_cap) is marched with the turned light A.
+    cut_deg = float(os.environ.get("SPREAD_DEG", "15"))
+    ang = prof.aerosol_phase_angles_deg
+    capped = med.truncated_phase * (1.0 - med.forward_fraction)[:, None, :]  # (Rg, A, 1) sr^-1
+    sig_a = np.stack([lr.at(zc)[:, 0] for lr in med.aerosol])  # (Rg, nzc) aerosol scattering
+    kc = np.zeros((sig_a.shape[0], nfft))
+    for r in range(sig_a.shape[0]):
+        g = np.where(ang[:, None] <= cut_deg, capped[r], 0.0)
+        x, k = projected_kernel(ang, g)  # rad^-1, integral = that of g over the sphere
+        np.add.at(kc[r], np.rint(x / d_rad).astype(int) % nfft, k[:, 0])
+    KC = np.fft.rfft(kc, axis=1) * d_rad  # (Rg, .)
+
+    def march_spread():
+        A = np.zeros((z.size, nd))
+        B = np.zeros((z.size, nd))
+        X = x_max
+        cols = np.arange(nd)[None, :]
+        while X > 1e-6:
+            step = min(h, X)
+            xm = X - 0.5 * step
+            sh = (delta + xm / R) * step / dz
+            n_int = np.floor(sh).astype(int)
+            f = (sh - n_int)[None, :]
+            zi = np.arange(z.size)[:, None] + n_int[None, :]
+            ok = (zi >= 0) & (zi + 1 < z.size)
+            za, zb = np.clip(zi, 0, z.size - 1), np.clip(zi + 1, 0, z.size - 1)
+            moved = []
+            for F in (A, B):
+                la = np.log(np.maximum(F[za, cols], 1e-300))
+                lb = np.log(np.maximum(F[zb, cols], 1e-300))
+                G = np.where(ok, np.exp(la * (1.0 - f) + lb * f), 0.0)
+                G[G < 1e-250] = 0.0
+                moved.append(G)
+            A, B = moved
+            M = np.exp(sig_p[:, None] * step * (K[None, :] - 1.0))
+            att = np.exp(-sig_s * step)[:, None]
+            b0 = (beam(X, z + (e_sun + xm / R) * step) / d_rad)[:, None]
+            padA = np.zeros((z.size, nfft))
+            padA[:, :nd] = A
+            specA_in = np.fft.rfft(padA, axis=1) + b0 * ph0[None, :]  # turned light + direct beam
+            # once scattered by p_cap in this step (at its middle: half the step's turns after it)
+            src = (sig_a[:, :nz].T[:, :, None] * KC[None, :, :]).sum(axis=1) * step  # (nz, .)
+            padB = np.zeros((z.size, nfft))
+            padB[:, :nd] = B
+            specB = (np.fft.rfft(padB, axis=1) + specA_in * src) * att * M
+            specA = np.fft.rfft(padA, axis=1) * att * M + b0 * att * (M - np.exp(-sig_p * step)[:, None]) * ph0[None, :]
+            A = np.maximum(np.fft.irfft(specA, nfft, axis=1)[:, :nd], 0.0)
+            B = np.maximum(np.fft.irfft(specB, nfft, axis=1)[:, :nd], 0.0)
+            X -= step
+        return B[0]
+
+    obsB = march_spread()
+    print(" above sun   unspread   1line(p_cap*K)  2D        2D/1line  (first non-peak scattering, marginal)")
+    for off in offsets:
+        xs, w_p, tau = rays[off]
+        dv = e_sun + off
+        zr = np.tan(dv) * xs + xs**2 / (2 * R)
+        j = i0 + int(round(off / d_rad))
+        phase = np.exp(2j * np.pi * np.arange(K.size) * ((j - i0) % nfft) / nfft) * wts
+        # weight sigma_r T*_sun T*_view per regime: w_p is sigma_p T* T*; T* = w_p / sigma_p
+        tt = np.where(coeff(zr, sig_p_c) > 0, w_p / np.maximum(coeff(zr, sig_p_c), 1e-300), 0.0)
+        ol = 0.0
+        un = 0.0
+        for r in range(sig_a.shape[0]):
+            wr = coeff(zr, sig_a[r]) * tt
+            specr = KC[r][None, :] * np.exp(np.where(tau > 0, tau, 0.0)[:, None] * (K[None, :] - 1.0))
+            ol += np.trapz(wr * (specr * phase[None, :]).real.sum(axis=1) / nfft / d_rad, xs)
+            un += np.trapz(wr * (KC[r] * phase).real.sum() / nfft / d_rad, xs)
+        print(f"{np.degrees(off):9.2f} {un:10.4g} {ol:12.4g} {obsB[j]:10.4g} {obsB[j] / ol:9.3f}")
+    sys.exit(0)
 if not os.environ.get("PLANE"):
     obs = march(K)[0]
     print(" above sun   single    2D >=2  1line >=2  2D/1line   (elevation marginal, per unit E, rad^-1)")
