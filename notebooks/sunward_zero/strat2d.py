@@ -123,6 +123,29 @@ beam = direct_table(sig_s_c + sig_p_c)
 ph0 = np.exp(-2j * np.pi * np.arange(K.size) * i0 / nfft)  # a delta at the sun's node
 
 
+def move_along_rays(F, X, step, signed=False):
+    """F (..., nz, nd) at the plane X moved one step toward the observer along its rays: node z'
+    reads z' + (delta + X_mid/R) step, log-linear between altitude nodes (exact for the
+    exponential fall of grazing light); nothing from below the ground or above the grid's top.
+    ``signed`` (the azimuthal slices, which take both signs): log-linear in |F| where both nodes
+    have the same sign, linear where they differ."""
+    sh = (delta + (X - 0.5 * step) / R) * step / dz  # in z nodes
+    n_int = np.floor(sh).astype(int)
+    f = (sh - n_int)[None, :]
+    zi = np.arange(z.size)[:, None] + n_int[None, :]
+    ok = (zi >= 0) & (zi + 1 < z.size)
+    cols = np.arange(nd)[None, :]
+    a_ = F[..., np.clip(zi, 0, z.size - 1), cols]
+    b_ = F[..., np.clip(zi + 1, 0, z.size - 1), cols]
+    mag = np.exp(np.log(np.maximum(np.abs(a_), 1e-300)) * (1.0 - f) + np.log(np.maximum(np.abs(b_), 1e-300)) * f)
+    if not signed:
+        out = np.where(ok, mag, 0.0)
+        out[out < 1e-250] = 0.0
+        return out
+    same = np.sign(a_) == np.sign(b_)
+    return np.where(ok, np.where(same, np.sign(a_) * mag, a_ * (1.0 - f) + b_ * f), 0.0)
+
+
 def march(Ks):
     """The turned light at the observer (S, nd) for kernel spectra Ks (S, nfft/2 + 1) along delta
     (S = 1, the projected kernel: the elevation marginal; else slices of the 2D kernel's
@@ -130,26 +153,10 @@ def march(Ks):
     Ks = np.atleast_2d(Ks)
     I = np.zeros((Ks.shape[0], z.size, nd))
     X = x_max
-    cols = np.arange(nd)[None, :]
     while X > 1e-6:
         step = min(h, X)
         xm = X - 0.5 * step
-        sh = (delta + xm / R) * step / dz  # in z nodes: the source of z' is z' + sh
-        n_int = np.floor(sh).astype(int)
-        f = (sh - n_int)[None, :]
-        zi = np.arange(z.size)[:, None] + n_int[None, :]
-        ok = (zi >= 0) & (zi + 1 < z.size)  # below the ground: nothing; above the top: nothing turned
-        za, zb = np.clip(zi, 0, z.size - 1), np.clip(zi + 1, 0, z.size - 1)
-        if Ks.shape[0] == 1:  # log-linear: exact for the exponential fall of grazing light
-            la = np.log(np.maximum(I[:, za, cols], 1e-300))
-            lb = np.log(np.maximum(I[:, zb, cols], 1e-300))
-            I = np.where(ok[None], np.exp(la * (1.0 - f) + lb * f), 0.0)
-            I[I < 1e-250] = 0.0
-        else:  # slices take both signs: log-linear in |I|, the sign of the nearer node
-            a_, b_ = I[:, za, cols], I[:, zb, cols]
-            same = np.sign(a_) == np.sign(b_)
-            mag = np.exp(np.log(np.maximum(np.abs(a_), 1e-300)) * (1.0 - f) + np.log(np.maximum(np.abs(b_), 1e-300)) * f)
-            I = np.where(ok[None], np.where(same, np.sign(a_) * mag, a_ * (1.0 - f) + b_ * f), 0.0)
+        I = move_along_rays(I, X, step, signed=Ks.shape[0] > 1)
         pad = np.zeros(I.shape[:2] + (nfft,))
         pad[..., :nd] = I
         M = np.exp(sig_p[None, :, None] * step * (Ks[:, None, :] - 1.0))
@@ -228,24 +235,10 @@ if os.environ.get("SPREAD"):
         A = np.zeros((z.size, nd))
         B = np.zeros((z.size, nd))
         X = x_max
-        cols = np.arange(nd)[None, :]
         while X > 1e-6:
             step = min(h, X)
             xm = X - 0.5 * step
-            sh = (delta + xm / R) * step / dz
-            n_int = np.floor(sh).astype(int)
-            f = (sh - n_int)[None, :]
-            zi = np.arange(z.size)[:, None] + n_int[None, :]
-            ok = (zi >= 0) & (zi + 1 < z.size)
-            za, zb = np.clip(zi, 0, z.size - 1), np.clip(zi + 1, 0, z.size - 1)
-            moved = []
-            for F in (A, B):
-                la = np.log(np.maximum(F[za, cols], 1e-300))
-                lb = np.log(np.maximum(F[zb, cols], 1e-300))
-                G = np.where(ok, np.exp(la * (1.0 - f) + lb * f), 0.0)
-                G[G < 1e-250] = 0.0
-                moved.append(G)
-            A, B = moved
+            A, B = move_along_rays(A, X, step), move_along_rays(B, X, step)
             M = np.exp(sig_p[:, None] * step * (K[None, :] - 1.0))
             att = np.exp(-sig_s * step)[:, None]
             b0 = (beam(X, z + (e_sun + xm / R) * step) / d_rad)[:, None]
