@@ -58,7 +58,8 @@ t_sun = np.tan(e_sun)
 dz = float(os.environ.get("DZ", "25"))
 TOP_M = 20e3
 zc = np.arange(0.0, 80e3 + dz / 2, dz)
-sig_r_c = np.stack([lr.at(zc)[:, 0] for lr in med.aerosol]) * med.forward_fraction[:, 0][:, None]  # (Rg, nzc)
+sig_a_c = np.stack([lr.at(zc)[:, 0] for lr in med.aerosol])  # (Rg, nzc) aerosol scattering per regime
+sig_r_c = sig_a_c * med.forward_fraction[:, 0][:, None]  # its cut peak's part
 sig_p_c = sig_r_c.sum(axis=0)
 sig_s_c = med.extinction.at(zc)[:, 0] - sig_p_c  # scaled extinction
 assert np.allclose(sig_s_c, med.extinction_scaled.at(zc)[:, 0], rtol=1e-6, atol=1e-12), "scaled extinction"
@@ -146,35 +147,55 @@ def move_along_rays(F, X, step, signed=False):
     return np.where(ok, np.where(same, np.sign(a_) * mag, a_ * (1.0 - f) + b_ * f), 0.0)
 
 
-def march(Ks):
+def march(Ks, KC=None):
     """The turned light at the observer (S, nd) for kernel spectra Ks (S, nfft/2 + 1) along delta
     (S = 1, the projected kernel: the elevation marginal; else slices of the 2D kernel's
-    transform at azimuthal frequencies, see PLANE below)."""
+    transform at azimuthal frequencies, see PLANE below). ``KC`` (Rg, nfft/2 + 1), with S = 1:
+    also a second population, the light scattered once by the regimes' capped phase functions
+    (spectra KC, see SPREAD below) with any peak turns before and after; returns both (2, nd)."""
     Ks = np.atleast_2d(Ks)
+    signed = Ks.shape[0] > 1
     I = np.zeros((Ks.shape[0], z.size, nd))
+    B = None if KC is None else np.zeros((1, z.size, nd))
+    # once scattered by p_cap in a step (per metre of path), summed over the regimes: (nz, .)
+    src = None if KC is None else (sig_a_c[:, :nz].T[:, :, None] * KC[None, :, :]).sum(axis=1)
     X = x_max
     while X > 1e-6:
         step = min(h, X)
         xm = X - 0.5 * step
-        I = move_along_rays(I, X, step, signed=Ks.shape[0] > 1)
-        pad = np.zeros(I.shape[:2] + (nfft,))
-        pad[..., :nd] = I
+        I = move_along_rays(I, X, step, signed=signed)
         M = np.exp(sig_p[None, :, None] * step * (Ks[:, None, :] - 1.0))
         att = np.exp(-sig_s * step)[None, :, None]
         # the direct beam entering the step (at its source point), turned in it: M less the part never turned
-        b0 = (beam(X, z + (e_sun + xm / R) * step) / d_rad)[None, :, None]
-        spec = np.fft.rfft(pad, axis=-1) * att * M + b0 * att * (M - np.exp(-sig_p * step)[None, :, None]) * ph0
-        I = np.fft.irfft(spec, nfft, axis=-1)[..., :nd]
-        if Ks.shape[0] == 1:
+        b0 = (beam(X, z + (e_sun + xm / R) * step) / d_rad)[None, :, None] * ph0
+        spec_in = rfft_delta(I)
+        if B is not None:  # the turned light and the direct beam, scattered once by p_cap
+            B = move_along_rays(B, X, step)
+            B = irfft_delta((rfft_delta(B) + (spec_in + b0) * src * step) * att * M)
+        I = irfft_delta(spec_in * att * M + b0 * att * (M - np.exp(-sig_p * step)[None, :, None]))
+        if not signed:
             I = np.maximum(I, 0.0)
+            if B is not None:
+                B = np.maximum(B, 0.0)
         X -= step
-    return I[:, 0]  # at the observer (z = 0), per radian of elevation
+    return I[:, 0] if B is None else np.concatenate([I[:, 0], B[:, 0]])  # at the observer (z = 0)
+
+
+def rfft_delta(F):
+    """The spectrum along delta of F (..., nd), zero-padded to nfft."""
+    pad = np.zeros(F.shape[:-1] + (nfft,))
+    pad[..., :nd] = F
+    return np.fft.rfft(pad, axis=-1)
+
+
+def irfft_delta(spec):
+    return np.fft.irfft(spec, nfft, axis=-1)[..., :nd]
 
 
 # --------------------------------------------------------------------------- one line
 def view_ray(off):
-    """Points of the view ray ``off`` above the sun inside the 2D grid: X (m), weight
-    sigma_p T*_sun T*_view (per metre) and the peak depth tau of sun line plus view path."""
+    """Points of the view ray ``off`` above the sun inside the 2D grid: X (m), altitude (m),
+    T*_sun T*_view (the scaled transmittances) and the peak depth tau of sun line plus view path."""
     dv = e_sun + off
     xs = np.linspace(0.0, 800e3, 8001)
     zr = np.tan(dv) * xs + xs**2 / (2 * R)
@@ -186,7 +207,17 @@ def view_ray(off):
     y0 = zr - t_sun * xs - xs**2 / (2 * R)
     ts_p = np.array([line_depth(y, x0, sig_p_c) for y, x0 in zip(y0, xs)])
     ts_s = np.array([line_depth(y, x0, sig_s_c) for y, x0 in zip(y0, xs)])
-    return xs, cp * np.exp(-ts_s - tv_s), ts_p + tv_p
+    return xs, zr, np.exp(-ts_s - tv_s), ts_p + tv_p
+
+
+def node(off):
+    return i0 + int(round(off / d_rad))
+
+
+def at_view(spec, off):
+    """The inverse transform of spectra (..., nfft/2 + 1) at the node ``off`` above the sun only."""
+    phase = np.exp(2j * np.pi * np.arange(K.size) * ((node(off) - i0) % nfft) / nfft) * wts
+    return (spec * phase).real.sum(axis=-1) / nfft / d_rad
 
 
 wts = np.full(K.size, 2.0)
@@ -194,18 +225,15 @@ wts[0] = 1.0
 wts[-1] = 1.0  # nfft even
 
 
-def one_line_at(Ks, xs, w, tau, off):
+def one_line_at(Ks, xs, zr, trans, tau, off):
     """The one-line light of >= 2 turns and of one turn at ``off`` for kernel spectra Ks (S, .)."""
-    j = i0 + int(round(off / d_rad))
-    phase = np.exp(2j * np.pi * np.arange(K.size) * ((j - i0) % nfft) / nfft) * wts
-    Ks = np.atleast_2d(Ks)
+    w = coeff(zr, sig_p_c) * trans
     out_m, out_1 = [], []
-    for Kk in Ks:
+    for Kk in np.atleast_2d(Ks):
         # e^-tau (e^(tau K) - 1) / tau, written so that a shadowed point's huge tau gives 0
         tt = np.where(tau > 0, tau, 1e-12)[:, None]
-        spec = (np.exp(tt * (Kk[None, :] - 1.0)) - np.exp(-tt)) / tt
-        F = (spec * phase[None, :]).real.sum(axis=1) / nfft / d_rad
-        k_at = (Kk * phase).real.sum() / nfft / d_rad
+        F = at_view((np.exp(tt * (Kk[None, :] - 1.0)) - np.exp(-tt)) / tt, off)
+        k_at = at_view(Kk, off)
         out_m.append(np.trapz(w * (F - np.exp(-tau) * k_at), xs))
         out_1.append(np.trapz(w * np.exp(-tau) * k_at, xs))
     return np.array(out_m), np.array(out_1)
@@ -223,56 +251,22 @@ if os.environ.get("SPREAD"):
     cut_deg = float(os.environ.get("SPREAD_DEG", "15"))
     ang = prof.aerosol_phase_angles_deg
     capped = med.truncated_phase * (1.0 - med.forward_fraction)[:, None, :]  # (Rg, A, 1) sr^-1
-    sig_a = np.stack([lr.at(zc)[:, 0] for lr in med.aerosol])  # (Rg, nzc) aerosol scattering
-    kc = np.zeros((sig_a.shape[0], nfft))
-    for r in range(sig_a.shape[0]):
-        g = np.where(ang[:, None] <= cut_deg, capped[r], 0.0)
-        x, k = projected_kernel(ang, g)  # rad^-1, integral = that of g over the sphere
+    kc = np.zeros((sig_a_c.shape[0], nfft))
+    for r in range(sig_a_c.shape[0]):
+        x, k = projected_kernel(ang, np.where(ang[:, None] <= cut_deg, capped[r], 0.0))  # rad^-1
         np.add.at(kc[r], np.rint(x / d_rad).astype(int) % nfft, k[:, 0])
     KC = np.fft.rfft(kc, axis=1) * d_rad  # (Rg, .)
-
-    def march_spread():
-        A = np.zeros((z.size, nd))
-        B = np.zeros((z.size, nd))
-        X = x_max
-        while X > 1e-6:
-            step = min(h, X)
-            xm = X - 0.5 * step
-            A, B = move_along_rays(A, X, step), move_along_rays(B, X, step)
-            M = np.exp(sig_p[:, None] * step * (K[None, :] - 1.0))
-            att = np.exp(-sig_s * step)[:, None]
-            b0 = (beam(X, z + (e_sun + xm / R) * step) / d_rad)[:, None]
-            padA = np.zeros((z.size, nfft))
-            padA[:, :nd] = A
-            specA_in = np.fft.rfft(padA, axis=1) + b0 * ph0[None, :]  # turned light + direct beam
-            # once scattered by p_cap in this step (at its middle: half the step's turns after it)
-            src = (sig_a[:, :nz].T[:, :, None] * KC[None, :, :]).sum(axis=1) * step  # (nz, .)
-            padB = np.zeros((z.size, nfft))
-            padB[:, :nd] = B
-            specB = (np.fft.rfft(padB, axis=1) + specA_in * src) * att * M
-            specA = np.fft.rfft(padA, axis=1) * att * M + b0 * att * (M - np.exp(-sig_p * step)[:, None]) * ph0[None, :]
-            A = np.maximum(np.fft.irfft(specA, nfft, axis=1)[:, :nd], 0.0)
-            B = np.maximum(np.fft.irfft(specB, nfft, axis=1)[:, :nd], 0.0)
-            X -= step
-        return B[0]
-
-    obsB = march_spread()
+    obsB = march(K, KC)[1]
     print(" above sun   unspread   1line(p_cap*K)  2D        2D/1line  (first non-peak scattering, marginal)")
     for off in offsets:
-        xs, w_p, tau = rays[off]
-        dv = e_sun + off
-        zr = np.tan(dv) * xs + xs**2 / (2 * R)
-        j = i0 + int(round(off / d_rad))
-        phase = np.exp(2j * np.pi * np.arange(K.size) * ((j - i0) % nfft) / nfft) * wts
-        # weight sigma_r T*_sun T*_view per regime: w_p is sigma_p T* T*; T* = w_p / sigma_p
-        tt = np.where(coeff(zr, sig_p_c) > 0, w_p / np.maximum(coeff(zr, sig_p_c), 1e-300), 0.0)
-        ol = 0.0
-        un = 0.0
-        for r in range(sig_a.shape[0]):
-            wr = coeff(zr, sig_a[r]) * tt
-            specr = KC[r][None, :] * np.exp(np.where(tau > 0, tau, 0.0)[:, None] * (K[None, :] - 1.0))
-            ol += np.trapz(wr * (specr * phase[None, :]).real.sum(axis=1) / nfft / d_rad, xs)
-            un += np.trapz(wr * (KC[r] * phase).real.sum() / nfft / d_rad, xs)
+        xs, zr, trans, tau = rays[off]
+        spread = np.exp(np.where(tau > 0, tau, 0.0)[:, None] * (K[None, :] - 1.0))  # K_tau, (points, .)
+        ol = un = 0.0
+        for r in range(sig_a_c.shape[0]):
+            wr = coeff(zr, sig_a_c[r]) * trans
+            ol += np.trapz(wr * at_view(KC[r][None, :] * spread, off), xs)
+            un += np.trapz(wr * at_view(KC[r], off), xs)
+        j = node(off)
         print(f"{np.degrees(off):9.2f} {un:10.4g} {ol:12.4g} {obsB[j]:10.4g} {obsB[j] / ol:9.3f}")
     sys.exit(0)
 if not os.environ.get("PLANE"):
@@ -280,7 +274,7 @@ if not os.environ.get("PLANE"):
     print(" above sun   single    2D >=2  1line >=2  2D/1line   (elevation marginal, per unit E, rad^-1)")
     for off in offsets:
         m1, s1 = one_line_at(K, *rays[off], off)
-        j = i0 + int(round(off / d_rad))
+        j = node(off)
         print(f"{np.degrees(off):9.2f} {s1[0]:9.4g} {obs[j] - s1[0]:10.4g} {m1[0]:10.4g} {(obs[j] - s1[0]) / m1[0]:9.3f}")
     sys.exit(0)
 
@@ -320,11 +314,11 @@ plane = (obs * dw[:, None]).sum(axis=0) / np.pi  # sr^-1
 print(" above sun   single    2D >=2  1line >=2  2D/1line   1line(Hankel) slices/Hankel (sun's vertical plane, sr^-1)")
 tau_g = np.concatenate([[0.0], np.geomspace(1e-3, 60.0, 200)])
 for off in offsets:
-    xs, w, tau = rays[off]
-    m_sl, s_sl = one_line_at(Ks, xs, w, tau, off)
+    xs, zr, trans, tau = rays[off]
+    m_sl, s_sl = one_line_at(Ks, xs, zr, trans, tau, off)
     m_pl, s_pl = (m_sl * dw).sum() / np.pi, (s_sl * dw).sum() / np.pi
     C = machine.correction_table(q2, tau_g, np.array([off]), qk=Qk)[0, :, 0]  # (n_tau,) sr^-1
-    m_h = np.trapz(w * np.interp(tau, tau_g, C), xs)
-    j = i0 + int(round(off / d_rad))
+    m_h = np.trapz(coeff(zr, sig_p_c) * trans * np.interp(tau, tau_g, C), xs)
+    j = node(off)
     print(f"{np.degrees(off):9.2f} {s_pl:9.4g} {plane[j] - s_pl:10.4g} {m_pl:10.4g} {(plane[j] - s_pl) / m_pl:9.3f}"
           f" {m_h:12.4g} {m_pl / m_h:9.3f}")
