@@ -1,7 +1,7 @@
 """The peak's light above a low sun: the aureole's one-line (plane-wave) counting against a
 small-angle transport in the sun's vertical plane, on the same medium and kernel.
 
-usage: [DZ=25] [PLANE=1 [N_ALPHA=40]] [SPREAD=1] strat2d.py scene wavelength_nm offsets_deg [x_max_km] [step_m]
+usage: [DZ=25] [PLANE=1 [N_ALPHA=40]] [SPREAD=1] [TILTS=b1,b2,..] strat2d.py scene wavelength_nm offsets_deg [x_max_km] [step_m]
   e.g. strat2d.py desert:0 650 2,3,4,5,6,8 500 250   (offsets: degrees above the sun)
 
 Both models keep only the aerosols' cut peak as scattering (projected on the elevation axis: the
@@ -89,10 +89,11 @@ def coeff(zq, c):
     return np.where(np.asarray(zq) < 0.0, 1.0, np.interp(zq, zc, c, right=0.0))
 
 
-def line_depth(y0, x_from, c, x_to=1500e3, n=3000):
-    """Integral of c along the sun's line z = y0 + tan(e) X + X^2/2R from X = x_from outward."""
+def line_depth(y0, x_from, c, x_to=1500e3, n=3000, slope=None):
+    """Integral of c along the sun's line z = y0 + tan(e) X + X^2/2R from X = x_from outward
+    (``slope``: another line's tan of elevation instead of the sun's)."""
     xs = np.linspace(x_from, x_to, n)
-    return np.trapz(coeff(y0 + t_sun * xs + xs**2 / (2 * R), c), xs)
+    return np.trapz(coeff(y0 + (t_sun if slope is None else slope) * xs + xs**2 / (2 * R), c), xs)
 
 
 def direct_table(c, x_to=1500e3):
@@ -193,9 +194,10 @@ def irfft_delta(spec):
 
 
 # --------------------------------------------------------------------------- one line
-def view_ray(off):
+def view_ray(off, tilt=0.0):
     """Points of the view ray ``off`` above the sun inside the 2D grid: X (m), altitude (m),
-    T*_sun T*_view (the scaled transmittances) and the peak depth tau of sun line plus view path."""
+    T*_sun T*_view (the scaled transmittances) and the peak depth tau of sun line plus view path.
+    ``tilt``: the 'sun line' of each point raised toward the view by tilt * off (TILTS below)."""
     dv = e_sun + off
     xs = np.linspace(0.0, 800e3, 8001)
     zr = np.tan(dv) * xs + xs**2 / (2 * R)
@@ -204,9 +206,10 @@ def view_ray(off):
     cp, cs = coeff(zr, sig_p_c), coeff(zr, sig_s_c)
     tv_p = cumulative_trapezoid(cp, xs, initial=0.0)
     tv_s = cumulative_trapezoid(cs, xs, initial=0.0)
-    y0 = zr - t_sun * xs - xs**2 / (2 * R)
-    ts_p = np.array([line_depth(y, x0, sig_p_c) for y, x0 in zip(y0, xs)])
-    ts_s = np.array([line_depth(y, x0, sig_s_c) for y, x0 in zip(y0, xs)])
+    sl = np.tan(e_sun + tilt * off)
+    y0 = zr - sl * xs - xs**2 / (2 * R)
+    ts_p = np.array([line_depth(y, x0, sig_p_c, slope=sl) for y, x0 in zip(y0, xs)])
+    ts_s = np.array([line_depth(y, x0, sig_s_c, slope=sl) for y, x0 in zip(y0, xs)])
     return xs, zr, np.exp(-ts_s - tv_s), ts_p + tv_p
 
 
@@ -276,6 +279,18 @@ if not os.environ.get("PLANE"):
         m1, s1 = one_line_at(K, *rays[off], off)
         j = node(off)
         print(f"{np.degrees(off):9.2f} {s1[0]:9.4g} {obs[j] - s1[0]:10.4g} {m1[0]:10.4g} {(obs[j] - s1[0]) / m1[0]:9.3f}")
+    tilts = [float(v) for v in os.environ.get("TILTS", "").split(",") if v]
+    if tilts:
+        # TILTS=b1,b2,..: the one-line count with every point's sun line (peak depth and scaled
+        # transmittance) raised toward the view by b * offset, the mean bend of the turned light
+        print(" above sun  " + "".join(f"  2D/tilt{b:<5g}" for b in tilts) + "  (>= 2 turns, marginal)")
+        for off in offsets:
+            j = node(off)
+            row = []
+            for b in tilts:
+                m1, s1 = one_line_at(K, *view_ray(off, b), off)
+                row.append((obs[j] - s1[0]) / m1[0])
+            print(f"{np.degrees(off):9.2f}  " + "".join(f"{v:13.3f}" for v in row))
     sys.exit(0)
 
 # PLANE=1: the radiance in the sun's vertical plane (azimuth 0): the 2D kernel q (the aureole's,
