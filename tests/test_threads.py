@@ -129,3 +129,42 @@ def test_limit_takes_on_a_background_thread_after_a_build_on_the_main_thread():
     assert all(set(c) == {1} for c in r["main"]), r
     assert all(set(c) == {1} and len(c) == len(r["before_bg"]) for c in r["background"]), r
     assert r["after"] == r["before_bg"] and set(r["before_bg"]) == {2}, r
+
+
+def test_solver_products_the_same_on_one_thread_and_two(monkeypatch):
+    """The solver's transport (gathered_radiance) and the peak term (PeakDiffuse.add_source)
+    split their wavelengths over SOLVER_THREADS threads, each with its own work arrays: the
+    same numbers on one thread and on two, bit for bit, and the peak term the batched product
+    it replaced (all wavelengths in one matmul)."""
+    from skymodel import Atmosphere
+    from skymodel.render import multiple_scattering as ms
+    from skymodel.render import peak_diffuse as pdm
+    from skymodel.render.medium import factor_medium
+
+    wavelengths_nm = np.array([450.0, 500.0, 550.0, 650.0, 700.0])
+    prof = Atmosphere(location="desert", month=6, aod550=0.5).optical_profile(wavelengths_nm)
+    med = factor_medium(prof, 6.0)
+    grid = ms.build_table_grid(prof, med, n_altitudes=5, n_mu=16, n_phi=4, n_mus=3)
+    rng = np.random.default_rng(8)
+    field = (grid.n_wl, grid.n_dir, grid.n_h, grid.n_mus)
+    radiance = rng.random(field).astype(np.float32)
+    n_rays = grid.n_h * grid.n_mu
+    M = rng.random((grid.n_wl, n_rays, n_rays)).astype(np.float32)
+    G = rng.random((grid.n_wl, n_rays)).astype(np.float32)
+    lg = rng.random((grid.n_mus, grid.n_wl)).astype(np.float32)
+    peak = pdm.PeakDiffuse(prof, med, grid)
+    assert peak
+    got = {}
+    for n in (1, 2):
+        monkeypatch.setattr(ms, "SOLVER_THREADS", n)
+        monkeypatch.setattr(pdm, "SOLVER_THREADS", n)
+        target = np.ones(field, dtype=np.float32)
+        peak.add_source(radiance, target)
+        got[n] = (ms.gathered_radiance(radiance, lg, M, G, grid), target)
+    assert np.array_equal(got[1][0], got[2][0]) and np.array_equal(got[1][1], got[2][1])
+    want = np.ones(field, dtype=np.float32).reshape(grid.n_wl, grid.n_mu, grid.n_phi, grid.n_h, grid.n_mus)
+    flat = radiance.reshape(grid.n_wl, grid.n_mu, -1)
+    for d, rows, sig in peak.terms:
+        part = np.matmul(d, flat).reshape(grid.n_wl, d.shape[1], grid.n_phi, grid.n_h, grid.n_mus)
+        want[:, rows] += part * sig[:, None, None, :, None]
+    np.testing.assert_allclose(got[2][1], want.reshape(field), rtol=1e-6)

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from skymodel.optics.profile import LayeredProfile, OpticalProfile
+from skymodel.render.threads import one_blas_thread
 
 
 @dataclass(frozen=True)
@@ -38,7 +39,10 @@ class LowRank:
         a = np.asarray(matrix, dtype=float)
         if not np.any(a):
             return cls(np.asarray(nodes_m, float), np.zeros((a.shape[0], 1)), np.zeros((1, a.shape[1])), layered, top_m)
-        u, s, vt = np.linalg.svd(a, full_matrices=False)
+        # on one BLAS thread: LAPACK's many small steps on BLAS's own threads wait for each
+        # other on a machine busy with other work (a 401 x 81 matrix 1 s against 2 ms idle)
+        with one_blas_thread():
+            u, s, vt = np.linalg.svd(a, full_matrices=False)
         k = max(1, int(np.count_nonzero(s > rtol * s[0])))
         return cls(np.asarray(nodes_m, float), u[:, :k] * s[:k], vt[:k], layered, top_m)
 
