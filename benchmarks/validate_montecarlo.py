@@ -88,9 +88,6 @@ def profile_for(aerosol, aod):
     return Atmosphere(location=aerosol, month=6, aod550=aod).optical_profile(BANDS_NM)
 
 
-#: the converged marcher of the previous comparison (revision 1127fa3): CONVERGED at every
-#: sun elevation. It equals today's with the sun up, where the table says "= now".
-BEFORE = CONVERGED
 #: MC paths per chunk when a scene's MC is traced in chunks (each chunk its own seed)
 CHUNK_PATHS = 100_000
 
@@ -131,11 +128,8 @@ def run_scene(args):
     settings = converged_settings(elev)
     m = SkyMarcher(prof, elev, SUN_AZIMUTH, 0.0, settings).radiance(d).radiance
     t_m = time.perf_counter() - t
-    before_is_now = settings == BEFORE
-    before = m if before_is_now else SkyMarcher(prof, elev, SUN_AZIMUTH, 0.0, BEFORE).radiance(d).radiance
     mean, se, paths, t_mc = trace_scene_mc(prof, aerosol, elev, n_paths, seed, mc_dir)
-    return dict(aerosol=aerosol, aod550=float(prof.metadata["aod550"]), elev=elev, marcher=m, before=before,
-                before_is_now=before_is_now, mc=mean,
+    return dict(aerosol=aerosol, aod550=float(prof.metadata["aod550"]), elev=elev, marcher=m, mc=mean,
                 stderr=se, n_paths=paths, t_marcher=t_m, t_mc=t_mc)
 
 
@@ -170,8 +164,6 @@ def fmt_pct(x):
 
 def scene_rows(res):
     rel = res["marcher"] / res["mc"] - 1.0
-    rel_b = res["before"] / res["mc"] - 1.0
-    same = res["before_is_now"]
     se = res["stderr"] / res["mc"]
     z = (res["marcher"] - res["mc"]) / res["stderr"]
     rows = []
@@ -179,9 +171,8 @@ def scene_rows(res):
         worst = int(np.argmax(np.abs(rel[i])))
         rows.append(f"| {res['aerosol']} ({res['aod550']:.2f}) | {res['elev']:g} | {zen:g} / {az:g} | "
                     f"{fmt_pct(rel[i].mean())} | {fmt_pct(rel[i, worst])} @ {BANDS_NM[worst]:g} | "
-                    f"{100 * se[i].mean():.1f} | {int(np.sum(np.abs(z[i]) > 3))}/{len(BANDS_NM)} | "
-                    f"{'= now' if same else fmt_pct(rel_b[i].mean())} |")
-    return rows, rel, rel_b, se, z
+                    f"{100 * se[i].mean():.1f} | {int(np.sum(np.abs(z[i]) > 3))}/{len(BANDS_NM)} |")
+    return rows, rel, se, z
 
 
 def main(argv=None):
@@ -221,36 +212,31 @@ def main(argv=None):
         f"(spherical transport of orders 1-2, peak aureole on; `CONVERGED` in the script); with the sun below the "
         f"horizon also every order transported spherically and 48 sun-angle nodes (`CONVERGED_TWILIGHT`: "
         f"`spherical_orders={CONVERGED_TWILIGHT.spherical_orders}, table_mus={CONVERGED_TWILIGHT.table_mus}`). "
-        f"*before* is today's code at the converged settings of the comparison before (revision 1127fa3): "
-        f"`CONVERGED` at every sun elevation, so it differs only below the horizon (\"= now\" elsewhere). "
         f"MC: `trace_radiance`, all orders, seeds fixed; paths per direction and band in the last table"
         + (f" (stored runs from `{a.mc_dir}` where present)" if a.mc_dir else "") + ".",
         "",
         "Columns: view = zenith angle / azimuth from the sun (deg); *mean* and *worst* = marcher / MC - 1 "
         "over the bands (%); *MC se* = the tracer's relative standard error (%, mean over the bands); "
-        "*> 3 se* = bands where the difference exceeds 3 standard errors; *before* = the mean with the settings "
-        "before (%).",
+        "*> 3 se* = bands where the difference exceeds 3 standard errors.",
         "",
-        "| aerosol (AOD550) | sun (deg) | view | mean (%) | worst (%) | MC se (%) | > 3 se | before (%) |",
-        "|---|---|---|---|---|---|---|---|",
+        "| aerosol (AOD550) | sun (deg) | view | mean (%) | worst (%) | MC se (%) | > 3 se |",
+        "|---|---|---|---|---|---|---|",
     ]
     summary = []
     for res in results:
-        rows, rel, rel_b, se, z = scene_rows(res)
+        rows, rel, se, z = scene_rows(res)
         lines += rows
         summary.append((res["aerosol"], res["elev"], float(np.median(np.abs(rel))), float(np.max(np.abs(rel))),
-                        float(np.median(np.abs(rel_b))), float(np.max(np.abs(rel_b))),
                         float(np.median(se)), int(np.sum(np.abs(z) > 3)), rel.size, res["n_paths"], res["t_marcher"],
-                        res["t_mc"], res["before_is_now"]))
-    lines += ["", "Per scene (all directions and bands): median and largest |marcher / MC - 1|, now and *before* "
-              "(see above), median MC standard error, entries beyond 3 standard errors (now), MC paths per "
+                        res["t_mc"]))
+    lines += ["", "Per scene (all directions and bands): median and largest |marcher / MC - 1|, "
+              "median MC standard error, entries beyond 3 standard errors, MC paths per "
               "direction and band, and the time each estimator took (MC: summed over its chunks).", "",
-              "| aerosol | sun (deg) | median abs (%) | max abs (%) | before: median / max (%) | MC se median (%) "
+              "| aerosol | sun (deg) | median abs (%) | max abs (%) | MC se median (%) "
               "| > 3 se | MC paths | marcher (s) | MC (s) |",
-              "|---|---|---|---|---|---|---|---|---|---|"]
-    for aer, el, med, mx, med_b, mx_b, se, nz, n, paths, tm, tmc, same in summary:
-        before = "= now" if same else f"{100 * med_b:.1f} / {100 * mx_b:.1f}"
-        lines.append(f"| {aer} | {el:g} | {100 * med:.1f} | {100 * mx:.1f} | {before} | "
+              "|---|---|---|---|---|---|---|---|---|"]
+    for aer, el, med, mx, se, nz, n, paths, tm, tmc in summary:
+        lines.append(f"| {aer} | {el:g} | {100 * med:.1f} | {100 * mx:.1f} | "
                      f"{100 * se:.1f} | {nz}/{n} | {paths} | {tm:.1f} | {'—' if not np.isfinite(tmc) else f'{tmc:.0f}'} |")
     if tw is not None:
         mc, out = tw
