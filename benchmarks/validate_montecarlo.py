@@ -223,7 +223,8 @@ def main(argv=None):
         f"`spherical_orders={CONVERGED_TWILIGHT.spherical_orders}, table_mus={CONVERGED_TWILIGHT.table_mus}`). "
         f"MC: `trace_radiance`, all orders, seeds fixed, next-event estimation with `sun_guide` "
         f"{SUN_GUIDE['desert']:g} for the desert ({SUN_GUIDE['rural']:g} for rural: the coarse dust's forward peak "
-        f"makes plain next-event estimation heavy-tailed, docs/accuracy.md); paths per direction and band in the last table"
+        f"makes plain next-event estimation heavy-tailed, docs/accuracy.md); paths per direction and band in the "
+        f"last table"
         + (f" (stored runs from `{a.mc_dir}` where present)" if a.mc_dir else "") + ".",
         "",
         "Columns: view = zenith angle / azimuth from the sun (deg); *mean* and *worst* = marcher / MC - 1 "
