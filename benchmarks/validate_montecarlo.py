@@ -100,14 +100,17 @@ SUN_GUIDE = {"rural": 0.0, "desert": 0.2}
 
 
 def mc_path(mc_dir, aerosol, elev):
-    return os.path.join(mc_dir, f"mc_{aerosol}_{elev:g}_g{SUN_GUIDE[aerosol]:g}.npz")
+    return os.path.join(mc_dir, f"mc_{aerosol}_{elev:g}_g{SUN_GUIDE[aerosol]:g}_s.npz")
 
 
 def trace_scene_mc(prof, aerosol, elev, n_paths, seed, mc_dir=None):
     """(mean, stderr, paths, seconds) of the MC for one scene; with ``mc_dir`` a stored
-    run is read from (or a new one written to) ``mc_<aerosol>_<elev>.npz``, so that the
+    run is read from (or a new one written to) ``mc_<aerosol>_<elev>_g<guide>_s.npz``, so that the
     expensive tracing is done once and the marcher can be re-measured against it. Stored
-    runs are averages of chunks of :data:`CHUNK_PATHS` paths with seeds 1000, 1001, ..."""
+    runs are averages of chunks of :data:`CHUNK_PATHS` paths with seeds 1000 seed, 1000 seed + 1,
+    ...: each scene its own (until 2026-11-29 every scene's chunks had seeds 1000, 1001, ..., so
+    the scenes shared their noise: the rural zenith read 0.5-1.2 % low at every sun, one
+    fluctuation of the tracer, +1.3 % at 450 nm, that other seeds do not repeat)."""
     if mc_dir and os.path.exists(mc_path(mc_dir, aerosol, elev)):
         with np.load(mc_path(mc_dir, aerosol, elev)) as z:
             return z["mean"], z["se"], int(z["chunks"]) * int(z["chunk"]), float(z["time_s"]) if "time_s" in z else float("nan")
@@ -117,7 +120,8 @@ def trace_scene_mc(prof, aerosol, elev, n_paths, seed, mc_dir=None):
         mean, se, chunks, chunk, secs = mc.radiance, mc.stderr, 1, n_paths, mc.time_s
     else:
         chunks, chunk = int(np.ceil(n_paths / CHUNK_PATHS)), CHUNK_PATHS
-        runs = [trace_radiance(prof, d, elev, SUN_AZIMUTH, n_paths=chunk, seed=1000 + k, sun_guide=SUN_GUIDE[aerosol])
+        runs = [trace_radiance(prof, d, elev, SUN_AZIMUTH, n_paths=chunk, seed=1000 * seed + k,
+                               sun_guide=SUN_GUIDE[aerosol])
                 for k in range(chunks)]
         mean = np.mean([r.radiance for r in runs], axis=0)
         se = np.sqrt(np.sum([r.stderr**2 for r in runs], axis=0)) / chunks
@@ -190,7 +194,7 @@ def main(argv=None):
     ap.add_argument("--paths-twilight", type=int, default=60_000, help="MC paths per direction and band, sun < 0")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-twilight-check", dest="twilight_check", action="store_false")
-    ap.add_argument("--mc-dir", default=None, help="store each scene's MC here (mc_<aerosol>_<elev>.npz) and reuse it")
+    ap.add_argument("--mc-dir", default=None, help="store each scene's MC here (mc_<aerosol>_<elev>_g<guide>_s.npz) and reuse it")
     ap.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "..", "docs", "validation.md"),
                     help="markdown whose section this run replaces (default docs/validation.md)")
     a = ap.parse_args(argv)
