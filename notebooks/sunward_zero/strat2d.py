@@ -89,11 +89,11 @@ def coeff(zq, c):
     return np.where(np.asarray(zq) < 0.0, 1.0, np.interp(zq, zc, c, right=0.0))
 
 
-def line_depth(y0, x_from, c, x_to=1500e3, n=3000, slope=None):
+def line_depth(y0, x_from, c, x_to=1500e3, n=3000, slope=t_sun):
     """Integral of c along the sun's line z = y0 + tan(e) X + X^2/2R from X = x_from outward
     (``slope``: another line's tan of elevation instead of the sun's)."""
     xs = np.linspace(x_from, x_to, n)
-    return np.trapz(coeff(y0 + (t_sun if slope is None else slope) * xs + xs**2 / (2 * R), c), xs)
+    return np.trapz(coeff(y0 + slope * xs + xs**2 / (2 * R), c), xs)
 
 
 def direct_table(c, x_to=1500e3):
@@ -288,7 +288,7 @@ if not os.environ.get("PLANE"):
             j = node(off)
             row = []
             for b in tilts:
-                m1, s1 = one_line_at(K, *view_ray(off, b), off)
+                m1, s1 = one_line_at(K, *(rays[off] if b == 0 else view_ray(off, b)), off)
                 row.append((obs[j] - s1[0]) / m1[0])
             print(f"{np.degrees(off):9.2f}  " + "".join(f"{v:13.3f}" for v in row))
     sys.exit(0)
