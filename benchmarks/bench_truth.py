@@ -5,8 +5,9 @@ locations' own ground albedo) at sun 60, 20, 5, 0 and -4 deg, the marcher at ``p
 ``final`` and ``reference`` and :func:`~skymodel.validation.montecarlo.trace_radiance` see the
 same optical profile and the same sky directions (:func:`skymodel.validation.truth.view_set`);
 the table gives per scene, quality and wavelength the median and the worst |marcher / MC - 1|
-with the noise the MC puts on each, and the marcher's time. Statistics:
-:mod:`skymodel.validation.truth`.
+with the noise the MC puts on each, and the marcher's time; a second table counts, per scene,
+which of two presets is closer to the truth where its noise can tell (``which_is_closer``).
+Statistics: :mod:`skymodel.validation.truth`.
 
 The marcher's profile is 440-660 nm every 10 nm (so each preset's multiple-scattering
 solver uses its own wavelength spacing: preview solves every 40 nm and interpolates), the
@@ -24,7 +25,8 @@ cached under ``--cache`` (default .cache/truth/), keyed by the scene, the views 
 profile, and grow: a re-run adds paths where the target is not met yet. Runs copied into
 ``benchmarks/truth/`` (committed) are read when the cache has none of a scene, so
 ``report`` works from a fresh checkout after ``march`` (an ``mc`` run grows such a run
-and writes it to the cache).
+and writes it to the cache). Each scene's run draws from a block of seeds of its own
+(``scene_seed_base``; the committed runs, traced before that, all but desert -4 deg's from seed 1).
 
     nice -n 5 python benchmarks/bench_truth.py mc --scenes all           # trace (cached, resumable)
     OMP_NUM_THREADS=1 python benchmarks/bench_truth.py mc --scenes desert:0 --workers 16   # a process a core
@@ -61,8 +63,9 @@ from skymodel.render.marcher import SkyMarcher  # noqa: E402
 from skymodel.render.quality import QUALITIES  # noqa: E402
 from skymodel.render.rays import sun_direction  # noqa: E402
 from skymodel.validation.montecarlo import trace_radiance  # noqa: E402
-from skymodel.validation.truth import (angle_to_sun_deg, paths_for_noise,  # noqa: E402
-                                       truth_statistics, view_directions, view_set)
+from skymodel.validation.truth import (CLOSER_SIGMAS, EXCLUDE_DEG, angle_to_sun_deg,  # noqa: E402
+                                       paths_for_noise, truth_statistics, view_directions, view_set,
+                                       which_is_closer)
 
 AEROSOLS = {"rural": 0.2, "desert": 0.5}
 SUN_ELEVATIONS = (60.0, 20.0, 5.0, 0.0, -4.0)
@@ -311,7 +314,27 @@ def split_batches(batches, workers, seed, seconds_per_path=None, chunk_s=CHUNK_S
     return tasks
 
 
-def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers=1, seed_from=1, min_top_up=0.1):
+#: Seeds per scene: a new run of a scene starts at :func:`scene_seed_base`, one block of this
+#: many seeds per (aerosol, sun elevation), so no two scenes' runs share random numbers.
+SCENE_SEED_BLOCK = 1_000_000
+
+
+def scene_seed_base(aerosol, elev):
+    """The first seed of a new Monte Carlo run of the scene (aerosol, sun elevation in deg):
+    its own block of :data:`SCENE_SEED_BLOCK` seeds. Until 2026-11-30 a run started at seed 1
+    in every scene (all committed runs but desert -4 deg's), so the scenes' runs began from the
+    same random numbers and partly share their fluctuations (each scene's statistics stand;
+    patterns across scenes need care); a block per scene keeps future runs apart. A run resumed
+    goes on in its scene's block. Elevations -18..90 deg in tenths;
+    the aerosols in the order of :data:`AEROSOLS`."""
+    k = list(AEROSOLS).index(aerosol)
+    e = int(round(10.0 * float(elev))) + 200  # -18..90 deg -> 20..1100
+    if not 0 <= e < 2000:
+        raise ValueError(f"sun elevation {elev} deg outside -18..90")
+    return 1 + SCENE_SEED_BLOCK * (2000 * k + e)
+
+
+def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers=1, seed_from=None, min_top_up=0.1):
     """Trace ``scene`` until every direction's relative standard error is ``target_se`` (or
     it has ``max_paths`` paths, or ``budget_s`` wall-clock seconds have passed: checked after
     every chunk; with workers the chunks still running then are dropped), saving after
@@ -320,8 +343,9 @@ def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers
     batches into chunks with their own seeds over that many processes (forked; each process
     single-threaded numpy); the run's
     ``seconds`` counts the processes' tracing time (CPU-seconds), its plan the wall-clock.
-    Seeds start at ``seed_from`` or after the run's last, whichever is larger: a run traced
-    elsewhere from other seeds can be pooled with this one (:func:`pool_runs`). A direction is
+    Seeds start at ``seed_from`` (default: the scene's own block, :func:`scene_seed_base`) or
+    after the run's last, whichever is larger: a run traced elsewhere from other seeds can be
+    pooled with this one (:func:`pool_runs`). A direction is
     traced again only when it needs more than ``min_top_up`` times the paths it has (rounds
     of a few paths cost more in overhead than they buy; lower it to clear the last ones)."""
     log = log or (lambda line: print(line, flush=True))
@@ -337,6 +361,8 @@ def run_mc(scene, target_se, max_paths, pilot_paths, budget_s, log=None, workers
     # average (desert -4 deg: 88-89 deg views 1.4-1.7x the zenith's), and the rounds serve
     # them most: a 72-minute budget planned on the average ran 78 minutes.
     per_dir = np.full(nd, float(mc["seconds"]) / max(1.0, float(mc["n"].sum())))
+    if seed_from is None:
+        seed_from = scene_seed_base(scene.aerosol, scene.elev)
     seed = max(int(seed_from), int(mc["seeds"].max()) + 1 if mc["seeds"].size else 1)
     if mc["n"].min() == 0:
         rows = np.flatnonzero(mc["n"] == 0)
@@ -508,8 +534,42 @@ def collect(scenes):
                              paths_max=int(mc["n"].max()), mc_seconds=float(mc["seconds"]),
                              stats={k: np.asarray(v).tolist() for k, v in st.items()},
                              worst_view=[sc.views[int(i)].tolist() for i in st["worst_index"]],
-                             rel=rel.tolist(), views=sc.views.tolist(), rel_se=(se / truth).tolist()))
+                             rel=rel.tolist(), views=sc.views.tolist(), rel_se=(se / truth).tolist(),
+                             angle=sc.angle.tolist()))
     return rows
+
+
+#: Pairs of presets compared by :func:`closer_table`: (the cheaper, the dearer).
+CLOSER_PAIRS = (("preview", "final"), ("final", "reference"))
+
+
+def closer_table(rows):
+    """Markdown: per scene and pair of presets (``CLOSER_PAIRS``), of the direction-wavelengths
+    the truth resolves (:func:`~skymodel.validation.truth.which_is_closer`), how many the dearer
+    preset is closer at; the medians and worsts of :func:`report` cannot tell presets apart that
+    differ by less than the truth's noise."""
+    by = {(r["aerosol"], r["elev"], r["quality"]): r for r in rows}
+    scenes = list(dict.fromkeys((r["aerosol"], r["elev"]) for r in rows))
+    pairs = [p for p in CLOSER_PAIRS if any((a, e, q) in by for a, e in scenes for q in p)]
+    head = " | ".join(f"`{b}` closer than `{a}`" for a, b in pairs)
+    lines = [f"| aerosol | sun (°) | {head} |", "|---|---|" + "---|" * len(pairs)]
+    totals = {p: [0, 0] for p in pairs}
+    for aer, elev in scenes:
+        cells = []
+        for a, b in pairs:
+            ra, rb = by.get((aer, elev, a)), by.get((aer, elev, b))
+            if ra is None or rb is None:
+                cells.append("")
+                continue
+            one = np.ones_like(np.asarray(ra["rel"]))
+            c = which_is_closer(1.0 + np.asarray(ra["rel"]), 1.0 + np.asarray(rb["rel"]), one,
+                                np.asarray(ra["rel_se"]), np.asarray(ra["angle"]), EXCLUDE_DEG)
+            totals[(a, b)][0] += c["b_closer"]
+            totals[(a, b)][1] += c["resolved"]
+            cells.append(f"{c['b_closer']} of {c['resolved']} (of {c['compared']})")
+        lines.append(f"| {aer} {AEROSOLS[aer]:g} | {elev:g} | " + " | ".join(cells) + " |")
+    lines.append("| all | | " + " | ".join(f"**{t[0]} of {t[1]}**" for t in totals.values()) + " |")
+    return "\n".join(lines)
 
 
 def _f(x, nd=2):
@@ -539,6 +599,10 @@ def report(rows, plot_path):
                      f"{trip('median_noise')} | {trip('mean_signed', '{:+.2f}')} | {trip('mean_noise')} | "
                      f"{trip('worst', '{:+.1f}')} | {trip('worst_noise')} | {where} | {r['seconds']:.1f} | "
                      f"{r['paths_min'] // 1000}k–{r['paths_max'] // 1000}k | {met} |")
+    lines += ["", f"Which preset is closer to the truth where its noise can tell (a direction and wavelength "
+              f"counts when the truth lies more than {CLOSER_SIGMAS:g} standard errors from the midpoint of the "
+              "two presets' radiances: `skymodel.validation.truth.which_is_closer`): of those, how many the "
+              "dearer preset is closer at (of all compared).", "", closer_table(rows)]
     if plot_path:
         _plot(rows, plot_path)
     return "\n".join(lines)
@@ -615,8 +679,9 @@ def main(argv=None):
     ap.add_argument("--pilot-paths", type=int, default=3000)
     ap.add_argument("--workers", type=int, default=1, help="mc: processes tracing each round's batches in chunks "
                     "with their own seeds (one per core; set OMP_NUM_THREADS=1)")
-    ap.add_argument("--seed-from", type=int, default=1, help="mc: the first seed at least (a run traced elsewhere "
-                    "at the same time takes seeds far from this one's, to be pooled with it)")
+    ap.add_argument("--seed-from", type=int, default=None, help="mc: the first seed at least (default: the scene's "
+                    "own block of seeds, scene_seed_base; a run traced elsewhere at the same time takes seeds far "
+                    "from this one's, to be pooled with it)")
     ap.add_argument("--runs", default="", help="pool: comma list of run files (.npz) of the one scene given, "
                     "traced apart from other seeds, to pool into its cached run")
     ap.add_argument("--min-top-up", type=float, default=0.1, help="mc: trace a direction again only when it "

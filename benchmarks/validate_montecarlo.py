@@ -32,6 +32,7 @@ import numpy as np
 _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path[:0] = [_HERE, os.path.join(_HERE, "..")]
 
+from bench_truth import SUN_GUIDE  # noqa: E402
 from common import command_line, git_revision, machine, update_section  # noqa: E402
 
 from skymodel.render.marcher import MarchSettings, SkyMarcher  # noqa: E402
@@ -93,10 +94,9 @@ def profile_for(aerosol, aod):
 CHUNK_PATHS = 100_000
 
 
-#: the tracer's sun_guide per aerosol, bench_truth's: plain next-event estimation is
-#: heavy-tailed on the paper's coarse desert dust (its forward peak ~1.7e4 sr^-1), the
-#: guide bounds every score (docs/accuracy.md, "The truth's estimator")
-SUN_GUIDE = {"rural": 0.0, "desert": 0.2}
+# The tracer's sun_guide per aerosol is bench_truth's SUN_GUIDE (imported above): plain
+# next-event estimation is heavy-tailed on the paper's coarse desert dust (its forward peak
+# ~1.7e4 sr^-1), the guide bounds every score (docs/accuracy.md, "The truth's estimator").
 
 
 def mc_path(mc_dir, aerosol, elev):

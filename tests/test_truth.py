@@ -15,6 +15,7 @@ import pytest
 from skymodel.errors import SkymodelInputError
 from skymodel.render.rays import sun_direction
 from skymodel.validation.truth import (EXCLUDE_DEG, MEDIAN_NOISE_FACTOR, angle_to_sun_deg, paths_for_noise,
+                                       which_is_closer,
                                        truth_statistics, view_directions, view_set)
 
 BENCHMARKS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "benchmarks")
@@ -107,6 +108,36 @@ def test_view_set_is_sky_only_and_outside_the_excluded_cone(elev):
     assert np.all(ang > EXCLUDE_DEG)
     assert np.any(ang < 12.0)  # the aureole beyond 2 degrees is measured
     assert [0.0, 0.0] in v.tolist()
+
+
+def test_which_is_closer_counts_only_what_the_truth_can_tell():
+    mc = np.ones((5, 1))
+    se = np.full((5, 1), 0.001)
+    a = np.array([[1.010], [1.002], [0.990], [1.0004], [1.5]])
+    b = np.array([[1.005], [1.003], [1.004], [0.9996], [1.5]])
+    # row 0: midpoint 1.0075, 7.5 se above the truth: b closer; row 1: midpoint 1.0025, a closer;
+    # row 2: midpoint 0.997, 3 se below: b closer; row 3: a and b 0.4 se either side, unresolved
+    # (equally close); row 4: inside the excluded cone around the sun
+    angle = np.array([30.0, 60.0, 90.0, 120.0, 1.0])
+    c = which_is_closer(a, b, mc, se, angle)
+    assert c == dict(compared=4, resolved=3, b_closer=2, a_closer=1)
+    assert which_is_closer(a, a, mc, se)["resolved"] == 0  # equal marchers: neither is closer
+    assert which_is_closer(b, a, mc, se, angle)["a_closer"] == 2  # the roles swap
+    # a noisy truth: b truly closer everywhere (0.2 % against 2 % off, truth noise 0.3 %);
+    # where the truth decides, it must name b nearly always, and a marcher pair equally far on
+    # either side of the truth is resolved only at the 2-sigma rate, as often one way as the other
+    rng = np.random.default_rng(5)
+    t = np.ones((4000, 1))
+    noisy = t * (1.0 + 0.003 * rng.standard_normal(t.shape))
+    c = which_is_closer(t * 1.02, t * 1.002, noisy, np.full(t.shape, 0.003))
+    assert c["resolved"] > 0.9 * t.size and c["a_closer"] <= 0.001 * t.size
+    c = which_is_closer(t * 0.995, t * 1.005, noisy, np.full(t.shape, 0.003))
+    assert 0.03 * t.size < c["resolved"] < 0.065 * t.size
+    assert abs(c["a_closer"] - c["b_closer"]) < 0.4 * c["resolved"]
+    with pytest.raises(SkymodelInputError, match="sigmas"):
+        which_is_closer(a, b, mc, se, sigmas=0.0)
+    with pytest.raises(SkymodelInputError, match="shapes"):
+        which_is_closer(a[:2], b, mc, se)
 
 
 def test_bad_inputs():
@@ -214,10 +245,24 @@ def test_a_parallel_round_pools_chunks_with_their_own_seeds(tmp_path, monkeypatc
         sc = _two_view_scene(bt, str(tmp_path / f"w{workers}"))
         _, mc = bt.run_mc(sc, 0.03, 6000, 1000, 60.0, log=lambda *_: None, workers=workers)
         assert np.all(mc["n"] > 1000) and len(set(mc["seeds"].tolist())) == mc["seeds"].size
+        assert mc["seeds"].min() == bt.scene_seed_base("rural", 60.0)  # the scene's own block
         assert os.path.exists(sc.mc_file(sc.mc_profile()))
         runs[workers] = mc
     a, b = runs[1], runs[2]
     assert np.all(np.abs(a["mean"] - b["mean"]) < 5.0 * np.hypot(a["se"], b["se"]))
+
+
+def test_every_scene_draws_from_a_block_of_seeds_of_its_own(monkeypatch):
+    """bench_truth mc: a new run starts at its scene's seed block, so two scenes never trace a
+    view with the same random numbers (their noise would be shared: every committed run before
+    2026-11-30 started at seed 1)."""
+    bt = _bench_truth(monkeypatch)
+    scenes = [(a, e) for a in bt.AEROSOLS for e in (-18.0, -4.0, -0.1, 0.0, 0.1, 5.0, 20.0, 60.0, 90.0)]
+    bases = sorted(bt.scene_seed_base(a, e) for a, e in scenes)
+    assert len(set(bases)) == len(scenes) and bases[0] >= 1
+    assert min(np.diff(bases)) >= bt.SCENE_SEED_BLOCK  # whole blocks apart
+    with pytest.raises(ValueError, match="elevation"):
+        bt.scene_seed_base("rural", 200.0)
 
 
 def test_mc_with_workers_stops_at_the_budget_within_a_round(tmp_path, monkeypatch):

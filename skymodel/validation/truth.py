@@ -10,6 +10,8 @@ that are not the tracing itself, so they can be tested fast:
   :data:`EXCLUDE_DEG` of the sun's centre left out;
 * :func:`truth_statistics`: per wavelength the median and the worst relative error over
   the directions, each with the Monte Carlo noise it carries;
+* :func:`which_is_closer`: of two marchers (two presets), which is closer to the truth
+  where the truth's noise lets one tell;
 * :func:`paths_for_noise`: paths per direction for a target standard error, from a pilot.
 
 Statistics (``rel = marcher / MC - 1`` per direction and wavelength; ``s = MC stderr /
@@ -144,6 +146,43 @@ def truth_statistics(marcher, mc, mc_stderr, angle_to_sun=None, exclude_deg=EXCL
                 median_noise=MEDIAN_NOISE_FACTOR * np.sqrt(np.mean(s * s, axis=0) / n),
                 worst=rel[wi, cols], worst_noise=s[wi, cols], worst_index=rows[wi],
                 noise_max=s.max(axis=0), n=np.full(t.shape[1], n))
+
+
+#: How many standard errors the truth must lie from the midpoint of two marchers before
+#: :func:`which_is_closer` counts the nearer one as closer.
+CLOSER_SIGMAS = 2.0
+
+
+def which_is_closer(a, b, mc, mc_stderr, angle_to_sun=None, exclude_deg=EXCLUDE_DEG, sigmas=CLOSER_SIGMAS):
+    """Which of two marchers ``a`` and ``b`` (both (N, W), e.g. ``final`` and ``reference``)
+    is closer to the Monte Carlo truth ``mc``, counted only where the truth's noise decides it.
+
+    ``b`` is closer than ``a`` exactly where the true radiance lies on ``b``'s side of their
+    midpoint ``(a + b) / 2``; the estimate ``mc`` tells that side with confidence where it lies
+    more than ``sigmas`` standard errors ``mc_stderr`` from the midpoint (where ``a`` and ``b``
+    are equal neither is closer). Directions within ``exclude_deg`` of the sun (``angle_to_sun``,
+    deg) are left out, as in :func:`truth_statistics`. A worst or median over the directions
+    cannot make this call when the two presets differ by less than the truth's noise; counting
+    the direction-wavelengths the truth resolves can.
+
+    Returns a dict: ``compared`` (direction-wavelengths counted), ``resolved`` (those whose
+    side the truth decides), ``b_closer`` (of the resolved, where ``b`` is the closer) and
+    ``a_closer``."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    t, se = np.asarray(mc, dtype=float), np.asarray(mc_stderr, dtype=float)
+    if not (a.shape == b.shape == t.shape == se.shape) or t.ndim != 2:
+        raise SkymodelInputError("a, b, mc, mc_stderr", f"shapes {a.shape}, {b.shape}, {t.shape}, {se.shape}",
+                                 "equal (N, W) arrays")
+    if not sigmas > 0:
+        raise SkymodelInputError("sigmas", sigmas, "a number of standard errors > 0")
+    keep = np.ones(t.shape[0], dtype=bool)
+    if angle_to_sun is not None:
+        keep = np.asarray(angle_to_sun, dtype=float) > exclude_deg
+    keep = np.broadcast_to(keep[:, None], t.shape)
+    resolved = keep & (a != b) & (np.abs(t - 0.5 * (a + b)) > sigmas * se)
+    b_closer = resolved & (np.abs(b - t) < np.abs(a - t))
+    return dict(compared=int(keep.sum()), resolved=int(resolved.sum()), b_closer=int(b_closer.sum()),
+                a_closer=int(resolved.sum() - b_closer.sum()))
 
 
 def paths_for_noise(pilot_stderr_rel, pilot_paths, target_rel, min_paths=1000, max_paths=None):
