@@ -1,0 +1,172 @@
+"""The truth's light of two or more peak turns and nothing else, against `final`'s aureole term.
+
+The aureole term (skymodel/render/aureole.py) is the light that reaches the eye after n >= 2
+turns inside the aerosols' cut forward peaks and no other scattering, counted along one line
+in a uniform medium. The Monte Carlo tracer can count that light exactly: each air collision's
+integrand splits into the cut peak, sum_k sig_k (p_k - min(p_k, p_k(cone))) inside the cone, and
+the rest; a path's weight times the peak's share of the integrand at every turn it took (the
+guided NEE's estimate is f / q for the whole integrand f, so each share is f_peak / f), and at its
+next-event estimate the peak's part of the sun's phase term, scores the class "every turn a
+peak turn"; from the second vertex on that is the aureole's light, the first vertex's is single
+scattering. A ground bounce ends the class. strat2d.py says the one-line count is about 11 %
+high 3 degrees above a sun on the horizon (desert AOD 0.5); this measures it.
+
+usage: peak_class.py scene views paths [wavelengths_nm] [seed]
+  e.g. peak_class.py desert:0 87/0,85/0,84/0,89/4.899 200000 550,650 11
+Prints per view and wavelength the tracer's total and class radiance (per unit solar irradiance,
+with standard errors), `final`'s total and aureole term (decomp.py's split) and their ratios."""
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path[:0] = [os.path.dirname(os.path.abspath(__file__))]
+import _setup as su  # noqa: E402
+from skymodel.render.marcher import SkyMarcher  # noqa: E402
+from skymodel.render.medium import delta_m_cone_deg  # noqa: E402
+from skymodel.render.rays import sun_direction  # noqa: E402
+from skymodel.validation import montecarlo as mc  # noqa: E402
+
+
+#: trace_radiance's default
+MAX_BOUNCES = 64
+
+
+def peak_cap(med, cone_deg):
+    """Each regime's phase value at the cut (R, W) and the largest angle (deg) the cut peak
+    reaches: the first tabulated angle at or beyond the cone, as aureole.peak_part cuts it."""
+    ang = med.phase_deg
+    j = min(max(int(np.searchsorted(ang, cone_deg)), 1), ang.size - 1)
+    return med.phase_tab[:, j, :], float(ang[j])
+
+
+def peak_phase(med, cos_t, w, cap, edge_deg):
+    """(R, m): the cut peak of each regime's phase function at cos_t."""
+    ph = med.aerosol_phase(cos_t, w)
+    inside = np.degrees(np.arccos(np.clip(cos_t, -1.0, 1.0))) < edge_deg
+    return np.where(inside[None, :], np.maximum(ph - cap[:, w], 0.0), 0.0)
+
+
+def trace_classes(med, origin, dirs, w, sun, max_bounces, rng, alpha, table, cap, edge):
+    """mc._trace_batch with the sun guide (alpha > 0), the same steps, also scoring the class
+    of paths whose every turn was a peak turn, from the second vertex on. Returns (n, 2)."""
+    n = dirs.shape[0]
+    contrib = np.zeros((n, 2))
+    p = np.broadcast_to(origin, dirs.shape).copy()
+    r_obs = float(np.linalg.norm(origin))
+    band = np.full(n, int(np.clip(np.searchsorted(med.band_r, r_obs, side="right") - 1, 0, med.n_bands - 1)))
+    idx = np.arange(n)
+    P, D, J, Wl = p, dirs.copy(), band, w
+    beta = np.ones(n)
+    chain = np.ones(n)  # the class's share of beta
+    for bounce in range(max_bounces):
+        if idx.size == 0:
+            break
+        ev, P, J = mc._track(med, P, D, J, Wl, rng)
+        nxt_D = D.copy()
+        keep = ev != mc._ESCAPE
+        ci, wc, sig_sc, sig_s, sig_t = mc._collision_coefficients(med, P, Wl, ev)
+        if ci.size:
+            Pc, Dc = P[ci], D[ci]
+            mu_sun = Dc @ sun
+            ph = np.concatenate([med.rayleigh_phase(mu_sun, wc)[None], med.aerosol_phase(mu_sun, wc)])
+            t_sun = mc._sun_transmittance(med, Pc, wc, sun, rng, table) * med.e_sun[wc]
+            contrib[idx[ci], 0] += beta[ci] * (sig_sc * ph).sum(axis=0) / sig_t * t_sun
+            if bounce >= 1:
+                pk = peak_phase(med, mu_sun, wc, cap, edge)
+                contrib[idx[ci], 1] += beta[ci] * chain[ci] * (sig_sc[1:] * pk).sum(axis=0) / sig_t * t_sun
+            nxt_D[ci], wgt = mc._guided_direction(med, Dc, wc, sig_sc, sun, alpha, rng)
+            beta[ci] *= sig_s / sig_t * wgt
+            # the peak's share of the integrand at the turn taken
+            mu_in = mc._rowdot(Dc, nxt_D[ci])
+            f = sig_sc[0] * med.rayleigh_phase(mu_in, wc) + (sig_sc[1:] * med.aerosol_phase(mu_in, wc)).sum(axis=0)
+            fp = (sig_sc[1:] * peak_phase(med, mu_in, wc, cap, edge)).sum(axis=0)
+            chain[ci] *= np.where(f > 0, fp / np.where(f > 0, f, 1.0), 0.0)
+        gi = np.flatnonzero(ev == mc._GROUND)
+        if gi.size:
+            Pg, wg = P[gi], Wl[gi]
+            nrm = Pg / np.linalg.norm(Pg, axis=1, keepdims=True)
+            mu0 = nrm @ sun
+            a = med.albedo[wg]
+            lit = (mu0 > 0.0) & (a > 0.0)
+            if np.any(lit):
+                li = gi[lit]
+                t_sun = mc._sun_transmittance(med, Pg[lit], wg[lit], sun, rng, table)
+                contrib[idx[li], 0] += beta[li] * a[lit] / np.pi * mu0[lit] * t_sun * med.e_sun[wg[lit]]
+            beta[gi] *= a
+            d_new, wgt = mc._guided_ground_bounce(med, nrm, wg, sun, alpha, rng)
+            beta[gi] *= wgt
+            nxt_D[gi] = d_new
+            J[gi] = 0
+            chain[gi] = 0.0
+        D = nxt_D
+        keep &= beta > 0.0
+        if bounce + 1 >= mc._RR_START:
+            beta, keep = mc._roulette(med, beta, D, Wl, sun, alpha, keep, rng)
+        idx, P, D, J, Wl, beta, chain = idx[keep], P[keep], D[keep], J[keep], Wl[keep], beta[keep], chain[keep]
+    return contrib
+
+
+def main():
+    scene, views, n_paths = sys.argv[1], sys.argv[2].split(","), int(sys.argv[3])
+    wls = [float(x) for x in (sys.argv[4] if len(sys.argv) > 4 else "550,650").split(",")]
+    seed = int(sys.argv[5]) if len(sys.argv) > 5 else 11
+    sc, prof, wl, _ = su.scene(scene)
+    rows = sc.view_rows(views)
+    alpha = sc.sun_guide
+    if not alpha > 0:
+        raise SystemExit("this script traces with the sun guide (desert scenes)")
+    m = su.marcher(sc, prof)
+    s = m.settings
+    cone = delta_m_cone_deg(prof, s.delta_m_cutoff_deg, s.delta_m_mild_cutoff_deg, table_phi=s.table_phi)
+    # final's split at the views (decomp.py's hook on the aureole gather)
+    rec = []
+    orig = SkyMarcher._aureole_gather
+
+    def hook(self, *a, **k):
+        out = orig(self, *a, **k)
+        rec.append(out)
+        return out
+
+    SkyMarcher._aureole_gather = hook
+    mc_prof = sc.atm.optical_profile(wls)
+    sun = sun_direction(sc.elev, su.bt.SUN_AZIMUTH).astype(float).reshape(3)
+    origin = np.array([0.0, 0.0, float(mc_prof.planet_radius_m)])
+    rng = np.random.default_rng(seed)
+    print(f"{scene}: cone {cone:g} deg, sun guide {alpha:g}, {n_paths} paths per view and wavelength, seed {seed}")
+    for i in rows:
+        rec.clear()
+        r = m.radiance(sc.dirs[i:i + 1])
+        aur = rec[0].reshape(-1, len(wl))[0]
+        for k, lam in enumerate(wls):
+            j = int(np.argmin(np.abs(wl - lam)))
+            e0m = float(np.asarray(prof.solar_irradiance)[j])
+            med = mc._Medium(mc_prof, np.array([k]))
+            cap, edge = peak_cap(med, cone)
+            table = mc._DepthTable(med) if sc.elev < mc._DARK_SUN_DEG else None
+            t = time.perf_counter()
+            chunks = []
+            for p0 in range(0, n_paths, 20000):
+                npc = min(20000, n_paths - p0)
+                d = np.repeat(sc.dirs[i:i + 1], npc, axis=0)
+                chunks.append(trace_classes(med, origin, d, np.zeros(npc, dtype=int), sun, MAX_BOUNCES, rng, alpha,
+                                            table, cap, edge))
+            c = np.concatenate(chunks) / float(mc_prof.solar_irradiance[k])
+            mean, se = c.mean(axis=0), c.std(axis=0, ddof=1) / np.sqrt(c.shape[0])
+            fin_tot, fin_aur = r.radiance[0, j] / e0m, aur[j] / e0m
+            if not mean[1] > 0:
+                print(f"{su.bt.view_label(sc.views[i])} {lam:g} nm: MC total {mean[0]:.5g} ± {100 * se[0] / mean[0]:.2f} %, "
+                      f"no path of the class; final total {fin_tot:.5g} ({100 * (fin_tot / mean[0] - 1):+.2f} %), "
+                      f"aureole {fin_aur:.5g} [{time.perf_counter() - t:.0f} s]", flush=True)
+                continue
+            print(f"{su.bt.view_label(sc.views[i])} {lam:g} nm: MC total {mean[0]:.5g} ± {100 * se[0] / mean[0]:.2f} %, "
+                  f"class {mean[1]:.5g} ± {100 * se[1] / mean[1]:.2f} % ({100 * mean[1] / mean[0]:.1f} % of it); "
+                  f"final total {fin_tot:.5g} ({100 * (fin_tot / mean[0] - 1):+.2f} %), aureole {fin_aur:.5g} "
+                  f"({100 * fin_aur / fin_tot:.1f} % of it); aureole / class {fin_aur / mean[1]:.3f} ± "
+                  f"{fin_aur / mean[1] * se[1] / mean[1]:.3f}; final rest / MC rest "
+                  f"{(fin_tot - fin_aur) / (mean[0] - mean[1]):.3f} [{time.perf_counter() - t:.0f} s]", flush=True)
+
+
+if __name__ == "__main__":
+    main()
