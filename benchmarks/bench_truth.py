@@ -327,10 +327,10 @@ def scene_seed_base(aerosol, elev):
     patterns across scenes need care); a block per scene keeps future runs apart. A run resumed
     goes on in its scene's block. Elevations -18..90 deg in tenths;
     the aerosols in the order of :data:`AEROSOLS`."""
-    k = list(AEROSOLS).index(aerosol)
-    e = int(round(10.0 * float(elev))) + 200  # -18..90 deg -> 20..1100
-    if not 0 <= e < 2000:
+    if not -18.0 <= float(elev) <= 90.0:
         raise ValueError(f"sun elevation {elev} deg outside -18..90")
+    k = list(AEROSOLS).index(aerosol)
+    e = int(round(10.0 * float(elev))) + 200  # -18..90 deg -> 20..1100 of a span of 2000
     return 1 + SCENE_SEED_BLOCK * (2000 * k + e)
 
 
