@@ -14,7 +14,9 @@ high 3 degrees above a sun on the horizon (desert AOD 0.5); this measures it.
 usage: peak_class.py scene views paths [wavelengths_nm] [seed]
   e.g. peak_class.py desert:0 87/0,85/0,84/0,89/4.899 200000 550,650 11
 Prints per view and wavelength the tracer's total and class radiance (per unit solar irradiance,
-with standard errors), `final`'s total and aureole term (decomp.py's split) and their ratios."""
+with standard errors), `final`'s total and its aureole term alone (decomp.py's hook, without the
+first scattering's peak spread that the same gather adds: that goes with the rest) and their
+ratios."""
 import os
 import sys
 import time
@@ -124,9 +126,9 @@ def main():
     rec = []
     orig = SkyMarcher._aureole_gather
 
-    def hook(self, *a, **k):
+    def hook(self, *a, **k):  # the gather adds the first scattering's spread: the aureole alone without it
         out = orig(self, *a, **k)
-        rec.append(out)
+        rec.append(orig(self, *a, **{**k, "spread": None}) if k.get("spread") is not None else out)
         return out
 
     SkyMarcher._aureole_gather = hook
