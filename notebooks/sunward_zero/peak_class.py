@@ -88,15 +88,9 @@ def trace_classes(med, origin, dirs, w, sun, max_bounces, rng, alpha, table, cap
         gi = np.flatnonzero(ev == mc._GROUND)
         if gi.size:
             Pg, wg = P[gi], Wl[gi]
-            nrm = Pg / np.linalg.norm(Pg, axis=1, keepdims=True)
-            mu0 = nrm @ sun
-            a = med.albedo[wg]
-            lit = (mu0 > 0.0) & (a > 0.0)
-            if np.any(lit):
-                li = gi[lit]
-                t_sun = mc._sun_transmittance(med, Pg[lit], wg[lit], sun, rng, table)
-                contrib[idx[li], 0] += beta[li] * a[lit] / np.pi * mu0[lit] * t_sun * med.e_sun[wg[lit]]
-            beta[gi] *= a
+            nrm, lit, nee = mc._ground_nee(med, Pg, wg, beta[gi], sun, rng, table)
+            contrib[idx[gi[lit]], 0] += nee
+            beta[gi] *= med.albedo[wg]
             d_new, wgt = mc._guided_ground_bounce(med, nrm, wg, sun, alpha, rng)
             beta[gi] *= wgt
             nxt_D[gi] = d_new

@@ -687,6 +687,23 @@ def _sun_transmittance(med, P, w, sun, rng, table=None):
     return out
 
 
+def _ground_nee(med: _Medium, Pg, wg, beta_g, sun, rng, table=None):
+    """Next-event estimate of the sun at ground hits ``Pg`` (wavelength slots ``wg``, path
+    weights ``beta_g`` before the albedo): the Lambertian ground's reflected sunlight,
+    beta a / pi mu0 T_sun E at the lit hits. Returns (outward normals (m, 3), the lit hits
+    (m,) bool, their contributions); the sun's transmittance through
+    :func:`_sun_transmittance` (``table``: its roulette of the dark rays)."""
+    nrm = Pg / np.linalg.norm(Pg, axis=1, keepdims=True)
+    mu0 = nrm @ sun
+    a = med.albedo[wg]
+    lit = (mu0 > 0.0) & (a > 0.0)
+    nee = np.zeros(0)
+    if np.any(lit):
+        t_sun = _sun_transmittance(med, Pg[lit], wg[lit], sun, rng, table)
+        nee = beta_g[lit] * a[lit] / np.pi * mu0[lit] * t_sun * med.e_sun[wg[lit]]
+    return nrm, lit, nee
+
+
 def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng, sun_guide=0.0, table=None):
     """Trace one batch of paths; returns each path's summed contribution (W m^-2 sr^-1 nm^-1).
 
@@ -736,15 +753,9 @@ def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng, sun_guide
         gi = np.flatnonzero(ev == _GROUND)
         if gi.size:
             Pg, wg = P[gi], Wl[gi]
-            nrm = Pg / np.linalg.norm(Pg, axis=1, keepdims=True)
-            mu0 = nrm @ sun
-            a = med.albedo[wg]
-            lit = (mu0 > 0.0) & (a > 0.0)
-            if np.any(lit):
-                li = gi[lit]
-                t_sun = _sun_transmittance(med, Pg[lit], wg[lit], sun, rng, table)
-                contrib[idx[li]] += beta[li] * a[lit] / np.pi * mu0[lit] * t_sun * med.e_sun[wg[lit]]
-            beta[gi] *= a
+            nrm, lit, nee = _ground_nee(med, Pg, wg, beta[gi], sun, rng, table)
+            contrib[idx[gi[lit]]] += nee
+            beta[gi] *= med.albedo[wg]
             if sun_guide > 0.0:  # cosine-weighted mixed with the sun guide, exact weight
                 d_new, wgt = _guided_ground_bounce(med, nrm, wg, sun, sun_guide, rng)
                 beta[gi] *= wgt
