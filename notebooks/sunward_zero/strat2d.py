@@ -98,7 +98,7 @@ def line_depth(y0, x_from, c, x_to=1500e3, n=3000, slope=t_sun):
 
 def direct_table(c, x_to=1500e3):
     """exp(-tau) of the direct beam at (X, z): tau tabulated on the sun's lines (intercept y0,
-    10 m) from X outward (1 km)."""
+    10 m) from X outward (1 km); x scalar or broadcasting with zq."""
     xs = np.arange(0.0, x_to + 1, 1000.0)
     y_lo = min(0.0, -t_sun * x_max) - x_max**2 / (2 * R) - 2e3
     y_hi = TOP_M + max(0.0, -t_sun * x_max) + 2e3
@@ -111,7 +111,8 @@ def direct_table(c, x_to=1500e3):
         fy = (np.asarray(zq) - t_sun * x - x**2 / (2 * R) - ys[0]) / 10.0
         iy = np.clip(np.floor(fy).astype(int), 0, ys.size - 2)
         wy = np.clip(fy - iy, 0.0, 1.0)
-        ix = min(int(x / 1000.0), xs.size - 2)
+        x = np.asarray(x, float)
+        ix = np.minimum((x / 1000.0).astype(int), xs.size - 2)
         wx = x / 1000.0 - ix
         t = ((tau[iy, ix] * (1 - wy) + tau[iy + 1, ix] * wy) * (1 - wx)
              + (tau[iy, ix + 1] * (1 - wy) + tau[iy + 1, ix + 1] * wy) * wx)
@@ -242,98 +243,104 @@ def one_line_at(Ks, xs, zr, trans, tau, off):
     return np.array(out_m), np.array(out_1)
 
 
-print(f"{scene} (sun {sc.elev:g} deg) {wl_nm:.0f} nm, cone {cone:.0f} deg, X_max {x_max / 1e3:.0f} km, "
-      f"step {h:.0f} m, dz {dz:g} m; column peak depth {np.trapz(sig_p, z):.3f}, scaled {np.trapz(sig_s, z):.3f}")
-rays = {off: view_ray(off) for off in offsets}
-if os.environ.get("SPREAD"):
-    # SPREAD=1 (elevation marginal): the first non-peak scattering (the capped phase functions,
-    # within SPREAD_DEG of the sun, projected on the elevation axis) with any number of peak turns
-    # before and after it: the one-line count (what peak_spread_table adds to the delta-M first
-    # scattering: p_cap * K_tau, tau of sun path plus view path) against the transport, where a
-    # second population B (once scattered by p_cap) is marched with the turned light A.
-    cut_deg = float(os.environ.get("SPREAD_DEG", "15"))
-    ang = prof.aerosol_phase_angles_deg
-    capped = med.truncated_phase * (1.0 - med.forward_fraction)[:, None, :]  # (Rg, A, 1) sr^-1
-    kc = np.zeros((sig_a_c.shape[0], nfft))
-    for r in range(sig_a_c.shape[0]):
-        x, k = projected_kernel(ang, np.where(ang[:, None] <= cut_deg, capped[r], 0.0))  # rad^-1
-        np.add.at(kc[r], np.rint(x / d_rad).astype(int) % nfft, k[:, 0])
-    KC = np.fft.rfft(kc, axis=1) * d_rad  # (Rg, .)
-    obsB = march(K, KC)[1]
-    print(" above sun   unspread   1line(p_cap*K)  2D        2D/1line  (first non-peak scattering, marginal)")
+def main():
+    """The printout of the module docstring (importing the module sets up the scene only)."""
+    print(f"{scene} (sun {sc.elev:g} deg) {wl_nm:.0f} nm, cone {cone:.0f} deg, X_max {x_max / 1e3:.0f} km, "
+          f"step {h:.0f} m, dz {dz:g} m; column peak depth {np.trapz(sig_p, z):.3f}, scaled {np.trapz(sig_s, z):.3f}")
+    rays = {off: view_ray(off) for off in offsets}
+    if os.environ.get("SPREAD"):
+        # SPREAD=1 (elevation marginal): the first non-peak scattering (the capped phase functions,
+        # within SPREAD_DEG of the sun, projected on the elevation axis) with any number of peak turns
+        # before and after it: the one-line count (what peak_spread_table adds to the delta-M first
+        # scattering: p_cap * K_tau, tau of sun path plus view path) against the transport, where a
+        # second population B (once scattered by p_cap) is marched with the turned light A.
+        cut_deg = float(os.environ.get("SPREAD_DEG", "15"))
+        ang = prof.aerosol_phase_angles_deg
+        capped = med.truncated_phase * (1.0 - med.forward_fraction)[:, None, :]  # (Rg, A, 1) sr^-1
+        kc = np.zeros((sig_a_c.shape[0], nfft))
+        for r in range(sig_a_c.shape[0]):
+            x, k = projected_kernel(ang, np.where(ang[:, None] <= cut_deg, capped[r], 0.0))  # rad^-1
+            np.add.at(kc[r], np.rint(x / d_rad).astype(int) % nfft, k[:, 0])
+        KC = np.fft.rfft(kc, axis=1) * d_rad  # (Rg, .)
+        obsB = march(K, KC)[1]
+        print(" above sun   unspread   1line(p_cap*K)  2D        2D/1line  (first non-peak scattering, marginal)")
+        for off in offsets:
+            xs, zr, trans, tau = rays[off]
+            spread = np.exp(np.where(tau > 0, tau, 0.0)[:, None] * (K[None, :] - 1.0))  # K_tau, (points, .)
+            ol = un = 0.0
+            for r in range(sig_a_c.shape[0]):
+                wr = coeff(zr, sig_a_c[r]) * trans
+                ol += np.trapz(wr * at_view(KC[r][None, :] * spread, off), xs)
+                un += np.trapz(wr * at_view(KC[r], off), xs)
+            j = node(off)
+            print(f"{np.degrees(off):9.2f} {un:10.4g} {ol:12.4g} {obsB[j]:10.4g} {obsB[j] / ol:9.3f}")
+        return
+    if not os.environ.get("PLANE"):
+        obs = march(K)[0]
+        print(" above sun   single    2D >=2  1line >=2  2D/1line   (elevation marginal, per unit E, rad^-1)")
+        for off in offsets:
+            m1, s1 = one_line_at(K, *rays[off], off)
+            j = node(off)
+            print(f"{np.degrees(off):9.2f} {s1[0]:9.4g} {obs[j] - s1[0]:10.4g} {m1[0]:10.4g} {(obs[j] - s1[0]) / m1[0]:9.3f}")
+        tilts = [float(v) for v in os.environ.get("TILTS", "").split(",") if v]
+        if tilts:
+            # TILTS=b1,b2,..: the one-line count with every point's sun line (peak depth and scaled
+            # transmittance) raised toward the view by b * offset, the mean bend of the turned light
+            print(" above sun  " + "".join(f"  2D/tilt{b:<5g}" for b in tilts) + "  (>= 2 turns, marginal)")
+            for off in offsets:
+                j = node(off)
+                row = []
+                for b in tilts:
+                    m1, s1 = one_line_at(K, *(rays[off] if b == 0 else view_ray(off, b)), off)
+                    row.append((obs[j] - s1[0]) / m1[0])
+                print(f"{np.degrees(off):9.2f}  " + "".join(f"{v:13.3f}" for v in row))
+        return
+
+    # PLANE=1: the radiance in the sun's vertical plane (azimuth 0): the 2D kernel q (the aureole's,
+    # marcher.peak_shape) has the Hankel transform Q(|omega|); at azimuthal frequency w_a the march
+    # along delta runs with Q(sqrt(w_d^2 + w_a^2)) (the projection-slice theorem: w_a = 0 is the
+    # marginal), and the value at azimuth 0 is (1/pi) int_0^inf (slice) dw_a (even in w_a).
+    from skymodel.render.marcher import peak_shape  # noqa: E402
+
+    machine, q2, Qk = peak_shape(prof, med, cone, prof.top_altitude_m)
+    # the peak's core (a tenth of a degree) is finer than the delta grid's Nyquist frequency: both
+    # models take the kernel blurred by a Gaussian of BLUR_DEG (harmless degrees from the sun)
+    blur = np.radians(float(os.environ.get("BLUR_DEG", "0.1")))
+    Qk = Qk * np.exp(-0.5 * (machine.k * blur) ** 2)[:, None]
+    w_d = 2.0 * np.pi * np.arange(K.size) / (nfft * d_rad)
+
+
+    def Q_at(k):
+        """Q at |omega| (rad^-1); below 1 rad^-1 the transform rings at its grid's low end (0.59 at
+        1e-3), where Q is 1 to 1e-4: 1 there."""
+        good = machine.k >= 1.0
+        return np.interp(np.log(np.maximum(k, 1e-9)), np.log(machine.k[good]), Qk[good, 0], left=1.0)
+
+
+    low = w_d < 0.2 / blur
+    print(f"projection-slice check (w_d < {0.2 / blur:.0f} rad^-1): max |K_marginal - Q(w_d)| = "
+          f"{np.max(np.abs(K.real - Q_at(w_d))[low]):.2e}")
+    n_a = int(os.environ.get("N_ALPHA", "40"))
+    w0, w_top = 20.0, float(os.environ.get("W_TOP", "2500"))
+    u = np.linspace(0.0, np.arcsinh(w_top / w0), n_a)
+    w_a = w0 * np.sinh(u)
+    dw = w0 * np.cosh(u) * (u[1] - u[0])
+    dw[[0, -1]] *= 0.5
+    Ks = Q_at(np.sqrt(w_d[None, :] ** 2 + w_a[:, None] ** 2)).astype(complex)
+    obs = march(Ks)  # (n_a, nd)
+    plane = (obs * dw[:, None]).sum(axis=0) / np.pi  # sr^-1
+    print(" above sun   single    2D >=2  1line >=2  2D/1line   1line(Hankel) slices/Hankel (sun's vertical plane, sr^-1)")
+    tau_g = np.concatenate([[0.0], np.geomspace(1e-3, 60.0, 200)])
     for off in offsets:
         xs, zr, trans, tau = rays[off]
-        spread = np.exp(np.where(tau > 0, tau, 0.0)[:, None] * (K[None, :] - 1.0))  # K_tau, (points, .)
-        ol = un = 0.0
-        for r in range(sig_a_c.shape[0]):
-            wr = coeff(zr, sig_a_c[r]) * trans
-            ol += np.trapz(wr * at_view(KC[r][None, :] * spread, off), xs)
-            un += np.trapz(wr * at_view(KC[r], off), xs)
+        m_sl, s_sl = one_line_at(Ks, xs, zr, trans, tau, off)
+        m_pl, s_pl = (m_sl * dw).sum() / np.pi, (s_sl * dw).sum() / np.pi
+        C = machine.correction_table(q2, tau_g, np.array([off]), qk=Qk)[0, :, 0]  # (n_tau,) sr^-1
+        m_h = np.trapz(coeff(zr, sig_p_c) * trans * np.interp(tau, tau_g, C), xs)
         j = node(off)
-        print(f"{np.degrees(off):9.2f} {un:10.4g} {ol:12.4g} {obsB[j]:10.4g} {obsB[j] / ol:9.3f}")
-    sys.exit(0)
-if not os.environ.get("PLANE"):
-    obs = march(K)[0]
-    print(" above sun   single    2D >=2  1line >=2  2D/1line   (elevation marginal, per unit E, rad^-1)")
-    for off in offsets:
-        m1, s1 = one_line_at(K, *rays[off], off)
-        j = node(off)
-        print(f"{np.degrees(off):9.2f} {s1[0]:9.4g} {obs[j] - s1[0]:10.4g} {m1[0]:10.4g} {(obs[j] - s1[0]) / m1[0]:9.3f}")
-    tilts = [float(v) for v in os.environ.get("TILTS", "").split(",") if v]
-    if tilts:
-        # TILTS=b1,b2,..: the one-line count with every point's sun line (peak depth and scaled
-        # transmittance) raised toward the view by b * offset, the mean bend of the turned light
-        print(" above sun  " + "".join(f"  2D/tilt{b:<5g}" for b in tilts) + "  (>= 2 turns, marginal)")
-        for off in offsets:
-            j = node(off)
-            row = []
-            for b in tilts:
-                m1, s1 = one_line_at(K, *(rays[off] if b == 0 else view_ray(off, b)), off)
-                row.append((obs[j] - s1[0]) / m1[0])
-            print(f"{np.degrees(off):9.2f}  " + "".join(f"{v:13.3f}" for v in row))
-    sys.exit(0)
-
-# PLANE=1: the radiance in the sun's vertical plane (azimuth 0): the 2D kernel q (the aureole's,
-# marcher.peak_shape) has the Hankel transform Q(|omega|); at azimuthal frequency w_a the march
-# along delta runs with Q(sqrt(w_d^2 + w_a^2)) (the projection-slice theorem: w_a = 0 is the
-# marginal), and the value at azimuth 0 is (1/pi) int_0^inf (slice) dw_a (even in w_a).
-from skymodel.render.marcher import peak_shape  # noqa: E402
-
-machine, q2, Qk = peak_shape(prof, med, cone, prof.top_altitude_m)
-# the peak's core (a tenth of a degree) is finer than the delta grid's Nyquist frequency: both
-# models take the kernel blurred by a Gaussian of BLUR_DEG (harmless degrees from the sun)
-blur = np.radians(float(os.environ.get("BLUR_DEG", "0.1")))
-Qk = Qk * np.exp(-0.5 * (machine.k * blur) ** 2)[:, None]
-w_d = 2.0 * np.pi * np.arange(K.size) / (nfft * d_rad)
+        print(f"{np.degrees(off):9.2f} {s_pl:9.4g} {plane[j] - s_pl:10.4g} {m_pl:10.4g} {(plane[j] - s_pl) / m_pl:9.3f}"
+              f" {m_h:12.4g} {m_pl / m_h:9.3f}")
 
 
-def Q_at(k):
-    """Q at |omega| (rad^-1); below 1 rad^-1 the transform rings at its grid's low end (0.59 at
-    1e-3), where Q is 1 to 1e-4: 1 there."""
-    good = machine.k >= 1.0
-    return np.interp(np.log(np.maximum(k, 1e-9)), np.log(machine.k[good]), Qk[good, 0], left=1.0)
-
-
-low = w_d < 0.2 / blur
-print(f"projection-slice check (w_d < {0.2 / blur:.0f} rad^-1): max |K_marginal - Q(w_d)| = "
-      f"{np.max(np.abs(K.real - Q_at(w_d))[low]):.2e}")
-n_a = int(os.environ.get("N_ALPHA", "40"))
-w0, w_top = 20.0, float(os.environ.get("W_TOP", "2500"))
-u = np.linspace(0.0, np.arcsinh(w_top / w0), n_a)
-w_a = w0 * np.sinh(u)
-dw = w0 * np.cosh(u) * (u[1] - u[0])
-dw[[0, -1]] *= 0.5
-Ks = Q_at(np.sqrt(w_d[None, :] ** 2 + w_a[:, None] ** 2)).astype(complex)
-obs = march(Ks)  # (n_a, nd)
-plane = (obs * dw[:, None]).sum(axis=0) / np.pi  # sr^-1
-print(" above sun   single    2D >=2  1line >=2  2D/1line   1line(Hankel) slices/Hankel (sun's vertical plane, sr^-1)")
-tau_g = np.concatenate([[0.0], np.geomspace(1e-3, 60.0, 200)])
-for off in offsets:
-    xs, zr, trans, tau = rays[off]
-    m_sl, s_sl = one_line_at(Ks, xs, zr, trans, tau, off)
-    m_pl, s_pl = (m_sl * dw).sum() / np.pi, (s_sl * dw).sum() / np.pi
-    C = machine.correction_table(q2, tau_g, np.array([off]), qk=Qk)[0, :, 0]  # (n_tau,) sr^-1
-    m_h = np.trapz(coeff(zr, sig_p_c) * trans * np.interp(tau, tau_g, C), xs)
-    j = node(off)
-    print(f"{np.degrees(off):9.2f} {s_pl:9.4g} {plane[j] - s_pl:10.4g} {m_pl:10.4g} {(plane[j] - s_pl) / m_pl:9.3f}"
-          f" {m_h:12.4g} {m_pl / m_h:9.3f}")
+if __name__ == "__main__":
+    main()
