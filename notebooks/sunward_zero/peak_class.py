@@ -90,10 +90,7 @@ def trace_classes(med, origin, dirs, w, sun, max_bounces, rng, alpha, table, cap
             Pg, wg = P[gi], Wl[gi]
             nrm, lit, nee = mc._ground_nee(med, Pg, wg, beta[gi], sun, rng, table)
             contrib[idx[gi[lit]], 0] += nee
-            beta[gi] *= med.albedo[wg]
-            d_new, wgt = mc._guided_ground_bounce(med, nrm, wg, sun, alpha, rng)
-            beta[gi] *= wgt
-            nxt_D[gi] = d_new
+            nxt_D[gi] = mc._ground_bounce(med, nrm, gi, wg, beta, sun, alpha, rng)
             J[gi] = 0
             chain[gi] = 0.0
         D = nxt_D

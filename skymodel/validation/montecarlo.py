@@ -597,6 +597,20 @@ def _guided_ground_bounce(med: _Medium, nrm, w, sun, alpha, rng):
     return d_new, np.where(q > 0.0, p_cos / np.where(q > 0.0, q, 1.0), 0.0)
 
 
+def _ground_bounce(med: _Medium, nrm, gi, wg, beta, sun, sun_guide, rng):
+    """The Lambertian ground's bounce at the ground hits ``gi`` of a batch (outward normals
+    ``nrm``, wavelength slots ``wg``): ``beta[gi]`` times the albedo and, with the sun guide
+    (``sun_guide`` > 0, :func:`_guided_ground_bounce`), the mixture's exact weight, in place;
+    returns the new directions (cosine-weighted without the guide). One home for every
+    estimator's bounce (the random numbers drawn in the same order as before it was shared)."""
+    beta[gi] *= med.albedo[wg]
+    if sun_guide > 0.0:
+        d_new, wgt = _guided_ground_bounce(med, nrm, wg, sun, sun_guide, rng)
+        beta[gi] *= wgt
+        return d_new
+    return _rotate(nrm, np.sqrt(rng.random(gi.size)), rng)
+
+
 def _guided_direction(med: _Medium, d_in, w, sig_sc, sun, alpha, rng):
     """New directions after air collisions, drawn from the defensive mixture
     q = (1 - alpha) x the physical phase function (the scatterer chosen from sig_sc, as
@@ -755,15 +769,7 @@ def _trace_batch(med: _Medium, origin, dirs, w, sun, max_bounces, rng, sun_guide
             Pg, wg = P[gi], Wl[gi]
             nrm, lit, nee = _ground_nee(med, Pg, wg, beta[gi], sun, rng, table)
             contrib[idx[gi[lit]]] += nee
-            beta[gi] *= med.albedo[wg]
-            if sun_guide > 0.0:  # cosine-weighted mixed with the sun guide, exact weight
-                d_new, wgt = _guided_ground_bounce(med, nrm, wg, sun, sun_guide, rng)
-                beta[gi] *= wgt
-                nxt_D[gi] = d_new
-            else:
-                u1 = rng.random(gi.size)
-                cos_t = np.sqrt(u1)
-                nxt_D[gi] = _rotate(nrm, cos_t, rng)
+            nxt_D[gi] = _ground_bounce(med, nrm, gi, wg, beta, sun, sun_guide, rng)
             J[gi] = 0
         D = nxt_D
         keep &= beta > 0.0
@@ -1172,13 +1178,7 @@ def _scatter(med, P, D, Wl, ev, beta, J, rng, sun_guide=0.0, sun=None):
     if ci.size:
         wt, nxt[ci] = _sample_scattering(med, sig_sc, sig_s, sig_t, wc, D[ci], rng)
         beta[ci] *= wt
-    gi = np.flatnonzero(ev == _GROUND)
-    if gi.size:
-        Pg = P[gi]
-        nrm = Pg / np.linalg.norm(Pg, axis=1, keepdims=True)
-        beta[gi] *= med.albedo[Wl[gi]]
-        nxt[gi] = _rotate(nrm, np.sqrt(rng.random(gi.size)), rng)
-        J[gi] = 0
+    _scatter_ground(med, P, Wl, ev, beta, J, nxt, sun, 0.0, rng)
     return nxt
 
 
@@ -1190,15 +1190,19 @@ def _scatter_guided(med, P, D, Wl, ev, beta, J, rng, alpha, sun):
     if ci.size:
         nxt[ci], wgt = _guided_direction(med, D[ci], wc, sig_sc, sun, alpha, rng)
         beta[ci] *= sig_s / sig_t * wgt
+    _scatter_ground(med, P, Wl, ev, beta, J, nxt, sun, alpha, rng)
+    return nxt
+
+
+def _scatter_ground(med, P, Wl, ev, beta, J, nxt, sun, sun_guide, rng):
+    """:func:`_scatter`'s ground hits: the bounce (:func:`_ground_bounce`) into ``nxt``, the
+    tracker's shell reset to the ground's."""
     gi = np.flatnonzero(ev == _GROUND)
     if gi.size:
-        Pg, wg = P[gi], Wl[gi]
+        Pg = P[gi]
         nrm = Pg / np.linalg.norm(Pg, axis=1, keepdims=True)
-        beta[gi] *= med.albedo[wg]
-        nxt[gi], wgt = _guided_ground_bounce(med, nrm, wg, sun, alpha, rng)
-        beta[gi] *= wgt
+        nxt[gi] = _ground_bounce(med, nrm, gi, Wl[gi], beta, sun, sun_guide, rng)
         J[gi] = 0
-    return nxt
 
 
 #: The direction guide of the sunlit estimator: bins in elevation (finer near the
