@@ -11,21 +11,25 @@ peak turn"; from the second vertex on that is the aureole's light, the first ver
 scattering. A ground bounce ends the class. strat2d.py says the one-line count is about 11 %
 high 3 degrees above a sun on the horizon (desert AOD 0.5); this measures it.
 
-usage: peak_class.py scene views paths [wavelengths_nm] [seed]
+usage: [ORDERS=k] peak_class.py scene views paths [wavelengths_nm] [seed]
   e.g. peak_class.py desert:0 87/0,85/0,84/0,89/4.899 200000 550,650 11
 Prints per view and wavelength the tracer's total and class radiance (per unit solar irradiance,
 with standard errors), `final`'s total and its aureole term alone (decomp.py's hook, without the
 first scattering's peak spread that the same gather adds: that goes with the rest) and their
-ratios."""
+ratios. ORDERS=k: also the class by its number of turns, 2 ... k and k + 1 or more, the tracer's
+against the aureole term's (the Poisson terms of its one-line count, e^-tau tau^(m-1) / m! q^{*m}
+for m turns, gathered as the term is)."""
 import os
 import sys
 import time
+
+from math import factorial
 
 import numpy as np
 
 sys.path[:0] = [os.path.dirname(os.path.abspath(__file__))]
 import _setup as su  # noqa: E402
-from skymodel.render.marcher import SkyMarcher  # noqa: E402
+from skymodel.render.marcher import SkyMarcher, peak_shape  # noqa: E402
 from skymodel.render.medium import delta_m_cone_deg  # noqa: E402
 from skymodel.render.rays import sun_direction  # noqa: E402
 from skymodel.validation import montecarlo as mc  # noqa: E402
@@ -50,11 +54,14 @@ def peak_phase(med, cos_t, w, cap, edge_deg):
     return np.where(inside[None, :], np.maximum(ph - cap[:, w], 0.0), 0.0)
 
 
-def trace_classes(med, origin, dirs, w, sun, max_bounces, rng, alpha, table, cap, edge):
+def trace_classes(med, origin, dirs, w, sun, max_bounces, rng, alpha, table, cap, edge, n_orders=0):
     """mc._trace_batch with the sun guide (alpha > 0), the same steps, also scoring the class
-    of paths whose every turn was a peak turn, from the second vertex on. Returns (n, 2)."""
+    of paths whose every turn was a peak turn, from the second vertex on. Returns (n, 2), or with
+    ``n_orders`` (n, 2 + n_orders): the class split by its number of turns, 2, 3, ... and the
+    last column all from 1 + n_orders turns on (a score at the path's vertex b has b + 1 turns:
+    b in the air, the last toward the sun)."""
     n = dirs.shape[0]
-    contrib = np.zeros((n, 2))
+    contrib = np.zeros((n, 2 + n_orders))
     p = np.broadcast_to(origin, dirs.shape).copy()
     r_obs = float(np.linalg.norm(origin))
     band = np.full(n, int(np.clip(np.searchsorted(med.band_r, r_obs, side="right") - 1, 0, med.n_bands - 1)))
@@ -77,7 +84,10 @@ def trace_classes(med, origin, dirs, w, sun, max_bounces, rng, alpha, table, cap
             contrib[idx[ci], 0] += beta[ci] * (sig_sc * ph).sum(axis=0) / sig_t * t_sun
             if bounce >= 1:
                 pk = peak_phase(med, mu_sun, wc, cap, edge)
-                contrib[idx[ci], 1] += beta[ci] * chain[ci] * (sig_sc[1:] * pk).sum(axis=0) / sig_t * t_sun
+                cls = beta[ci] * chain[ci] * (sig_sc[1:] * pk).sum(axis=0) / sig_t * t_sun
+                contrib[idx[ci], 1] += cls
+                if n_orders:
+                    contrib[idx[ci], 2 + min(bounce - 1, n_orders - 1)] += cls
             nxt_D[ci], wgt = mc._guided_direction(med, Dc, wc, sig_sc, sun, alpha, rng)
             beta[ci] *= sig_s / sig_t * wgt
             # the peak's share of the integrand at the turn taken
@@ -99,6 +109,22 @@ def trace_classes(med, origin, dirs, w, sun, max_bounces, rng, alpha, table, cap
             beta, keep = mc._roulette(med, beta, D, Wl, sun, alpha, keep, rng)
         idx, P, D, J, Wl, beta, chain = idx[keep], P[keep], D[keep], J[keep], Wl[keep], beta[keep], chain[keep]
     return contrib
+
+
+def aureole_orders(m, n_orders):
+    """The marcher's aureole table split by the number of turns: float32 tables for 2 ... n_orders
+    turns and the rest (n_orders + 1 or more), on its (theta, tau) grid."""
+    machine, _, qk = peak_shape(m.profile, m.medium, m.medium.cutoff_deg, m.top)
+    theta_g, tau_g, table = m._aureole
+    tabs = []
+    for turns in range(2, n_orders + 1):
+        t = np.zeros_like(table)
+        for j, tau in enumerate(tau_g):
+            if tau > 0:
+                t[:, j] = machine._inverse(np.exp(-tau) * tau ** (turns - 1) / factorial(turns) * qk**turns, theta_g)
+        tabs.append(t)
+    tabs.append(table - sum(tabs))
+    return [t.astype(np.float32) for t in tabs]
 
 
 def main():
@@ -123,6 +149,8 @@ def main():
         return out
 
     SkyMarcher._aureole_gather = hook
+    n_orders = int(os.environ.get("ORDERS", "0"))
+    order_tables = aureole_orders(m, n_orders) if n_orders else []
     mc_prof = sc.atm.optical_profile(wls)
     sun = sun_direction(sc.elev, su.bt.SUN_AZIMUTH).astype(float).reshape(3)
     origin = np.array([0.0, 0.0, float(mc_prof.planet_radius_m)])
@@ -132,6 +160,14 @@ def main():
         rec.clear()
         r = m.radiance(sc.dirs[i:i + 1])
         aur = rec[0].reshape(-1, len(wl))[0]
+        full = m._aureole_table32
+        aur_orders = []
+        for t32 in order_tables:  # the aureole term's light of each number of turns
+            m._aureole_table32 = t32
+            rec.clear()
+            m.radiance(sc.dirs[i:i + 1])
+            aur_orders.append(rec[0].reshape(-1, len(wl))[0])
+        m._aureole_table32 = full
         for k, lam in enumerate(wls):
             j = int(np.argmin(np.abs(wl - lam)))
             e0m = float(np.asarray(prof.solar_irradiance)[j])
@@ -144,7 +180,7 @@ def main():
                 npc = min(20000, n_paths - p0)
                 d = np.repeat(sc.dirs[i:i + 1], npc, axis=0)
                 chunks.append(trace_classes(med, origin, d, np.zeros(npc, dtype=int), sun, MAX_BOUNCES, rng, alpha,
-                                            table, cap, edge))
+                                            table, cap, edge, n_orders))
             c = np.concatenate(chunks) / float(mc_prof.solar_irradiance[k])
             mean, se = c.mean(axis=0), c.std(axis=0, ddof=1) / np.sqrt(c.shape[0])
             fin_tot, fin_aur = r.radiance[0, j] / e0m, aur[j] / e0m
@@ -159,6 +195,12 @@ def main():
                   f"({100 * fin_aur / fin_tot:.1f} % of it); aureole / class {fin_aur / mean[1]:.3f} ± "
                   f"{fin_aur / mean[1] * se[1] / mean[1]:.3f}; final rest / MC rest "
                   f"{(fin_tot - fin_aur) / (mean[0] - mean[1]):.3f} [{time.perf_counter() - t:.0f} s]", flush=True)
+            for o, a_o in enumerate(aur_orders):
+                turns = f"{o + 2}" if o + 1 < n_orders else f">={o + 2}"
+                mo, so, ao = mean[2 + o], se[2 + o], a_o[j] / e0m
+                print(f"    {turns:>4} turns: MC {mo:.4g} ± {so:.2g} ({100 * mo / mean[1]:.1f} % of the class), "
+                      f"aureole {ao:.4g} ({100 * ao / fin_aur:.1f} %); aureole / MC "
+                      f"{ao / mo if mo > 0 else float('nan'):.3f}", flush=True)
 
 
 if __name__ == "__main__":
