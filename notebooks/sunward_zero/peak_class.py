@@ -11,14 +11,20 @@ peak turn"; from the second vertex on that is the aureole's light, the first ver
 scattering. A ground bounce ends the class. strat2d.py says the one-line count is about 11 %
 high 3 degrees above a sun on the horizon (desert AOD 0.5); this measures it.
 
-usage: [ORDERS=k] peak_class.py scene views paths [wavelengths_nm] [seed]
+usage: [ORDERS=k] [SPLIT=1] peak_class.py scene views paths [wavelengths_nm] [seed]
   e.g. peak_class.py desert:0 87/0,85/0,84/0,89/4.899 200000 550,650 11
 Prints per view and wavelength the tracer's total and class radiance (per unit solar irradiance,
 with standard errors), `final`'s total and its aureole term alone (decomp.py's hook, without the
 first scattering's peak spread that the same gather adds: that goes with the rest) and their
 ratios. ORDERS=k: also the class by its number of turns, 2 ... k and k + 1 or more, the tracer's
 against the aureole term's (the Poisson terms of its one-line count, e^-tau tau^(m-1) / m! q^{*m}
-for m turns, gathered as the term is)."""
+for m turns, gathered as the term is). SPLIT=1: the sky split four ways, the tracer's against
+`final`'s: the peak's single turn (the first vertex's; `final`'s delta-M first scattering's peak
+part, through the true extinction), the pure peak chains (the class; the aureole term), exactly one
+turn outside the cut peak with any number of peak turns (the tracer's paths weighed by the share of
+one non-peak turn among their turns; `final`'s delta-M first scattering's capped part, through the
+scaled extinction, plus its peak spread) and the rest (two or more non-peak turns and the ground;
+`final`'s total less the three)."""
 import os
 import sys
 import time
@@ -59,9 +65,12 @@ def trace_classes(med, origin, dirs, w, sun, max_bounces, rng, alpha, table, cap
     of paths whose every turn was a peak turn, from the second vertex on. Returns (n, 2), or with
     ``n_orders`` (n, 2 + n_orders): the class split by its number of turns, 2, 3, ... and the
     last column all from 1 + n_orders turns on (a score at the path's vertex b has b + 1 turns:
-    b in the air, the last toward the sun)."""
+    b in the air, the last toward the sun). Columns 2 + n_orders and 3 + n_orders: the light of one
+    peak turn only (the first vertex's peak single scattering) and of exactly one turn outside the
+    cut peak with any number of peak turns (SPLIT below)."""
     n = dirs.shape[0]
-    contrib = np.zeros((n, 2 + n_orders))
+    contrib = np.zeros((n, 4 + n_orders))
+    one = 2 + n_orders  # the columns of the peak's single turn and of one non-peak turn
     p = np.broadcast_to(origin, dirs.shape).copy()
     r_obs = float(np.linalg.norm(origin))
     band = np.full(n, int(np.clip(np.searchsorted(med.band_r, r_obs, side="right") - 1, 0, med.n_bands - 1)))
@@ -69,6 +78,7 @@ def trace_classes(med, origin, dirs, w, sun, max_bounces, rng, alpha, table, cap
     P, D, J, Wl = p, dirs.copy(), band, w
     beta = np.ones(n)
     chain = np.ones(n)  # the class's share of beta
+    chain1 = np.zeros(n)  # the share of paths with exactly one non-peak turn so far
     for bounce in range(max_bounces):
         if idx.size == 0:
             break
@@ -82,9 +92,14 @@ def trace_classes(med, origin, dirs, w, sun, max_bounces, rng, alpha, table, cap
             ph = np.concatenate([med.rayleigh_phase(mu_sun, wc)[None], med.aerosol_phase(mu_sun, wc)])
             t_sun = mc._sun_transmittance(med, Pc, wc, sun, rng, table) * med.e_sun[wc]
             contrib[idx[ci], 0] += beta[ci] * (sig_sc * ph).sum(axis=0) / sig_t * t_sun
+            pk = peak_phase(med, mu_sun, wc, cap, edge)
+            f_pk = (sig_sc[1:] * pk).sum(axis=0)
+            f_np = (sig_sc * ph).sum(axis=0) - f_pk
+            contrib[idx[ci], one + 1] += beta[ci] * (chain1[ci] * f_pk + chain[ci] * f_np) / sig_t * t_sun
+            if bounce == 0:
+                contrib[idx[ci], one] += beta[ci] * f_pk / sig_t * t_sun
             if bounce >= 1:
-                pk = peak_phase(med, mu_sun, wc, cap, edge)
-                cls = beta[ci] * chain[ci] * (sig_sc[1:] * pk).sum(axis=0) / sig_t * t_sun
+                cls = beta[ci] * chain[ci] * f_pk / sig_t * t_sun
                 contrib[idx[ci], 1] += cls
                 if n_orders:
                     contrib[idx[ci], 2 + min(bounce - 1, n_orders - 1)] += cls
@@ -94,7 +109,9 @@ def trace_classes(med, origin, dirs, w, sun, max_bounces, rng, alpha, table, cap
             mu_in = mc._rowdot(Dc, nxt_D[ci])
             f = sig_sc[0] * med.rayleigh_phase(mu_in, wc) + (sig_sc[1:] * med.aerosol_phase(mu_in, wc)).sum(axis=0)
             fp = (sig_sc[1:] * peak_phase(med, mu_in, wc, cap, edge)).sum(axis=0)
-            chain[ci] *= np.where(f > 0, fp / np.where(f > 0, f, 1.0), 0.0)
+            share = np.where(f > 0, fp / np.where(f > 0, f, 1.0), 0.0)
+            chain1[ci] = chain1[ci] * share + chain[ci] * (1.0 - share)
+            chain[ci] *= share
         gi = np.flatnonzero(ev == mc._GROUND)
         if gi.size:
             Pg, wg = P[gi], Wl[gi]
@@ -103,11 +120,13 @@ def trace_classes(med, origin, dirs, w, sun, max_bounces, rng, alpha, table, cap
             nxt_D[gi] = mc._ground_bounce(med, nrm, gi, wg, beta, sun, alpha, rng)
             J[gi] = 0
             chain[gi] = 0.0
+            chain1[gi] = 0.0
         D = nxt_D
         keep &= beta > 0.0
         if bounce + 1 >= mc._RR_START:
             beta, keep = mc._roulette(med, beta, D, Wl, sun, alpha, keep, rng)
         idx, P, D, J, Wl, beta, chain = idx[keep], P[keep], D[keep], J[keep], Wl[keep], beta[keep], chain[keep]
+        chain1 = chain1[keep]
     return contrib
 
 
@@ -140,15 +159,28 @@ def main():
     s = m.settings
     cone = delta_m_cone_deg(prof, s.delta_m_cutoff_deg, s.delta_m_mild_cutoff_deg, table_phi=s.table_phi)
     # final's split at the views (decomp.py's hook on the aureole gather)
-    rec = []
+    rec, rec_spread, rec_first = [], [], []
     orig = SkyMarcher._aureole_gather
+    orig_first = SkyMarcher._delta_m_first_scattering
 
     def hook(self, *a, **k):  # the gather adds the first scattering's spread: the aureole alone without it
         out = orig(self, *a, **k)
-        rec.append(orig(self, *a, **{**k, "spread": None}) if k.get("spread") is not None else out)
+        alone = orig(self, *a, **{**k, "spread": None}) if k.get("spread") is not None else out
+        rec.append(alone)
+        rec_spread.append(out - alone)
+        return out
+
+    def hook_first(self, cos_theta, dt, ray, regimes, aers, pa, c_aer, trans_s, t_sun_s):
+        # the delta-M first scattering: the peak's single turn (true extinction) and the rest
+        out = orig_first(self, cos_theta, dt, ray, regimes, aers, pa, c_aer, trans_s, t_sun_s)
+        p_cap = self._capped_aerosol_phase(cos_theta)
+        peak = sum(np.maximum(pa[reg] - p_cap[reg], 0.0) * c for reg, c in zip(regimes, c_aer))
+        peak = self.profile.solar_irradiance * peak
+        rec_first.append((out - peak, peak))
         return out
 
     SkyMarcher._aureole_gather = hook
+    SkyMarcher._delta_m_first_scattering = hook_first
     n_orders = int(os.environ.get("ORDERS", "0"))
     order_tables = aureole_orders(m, n_orders) if n_orders else []
     mc_prof = sc.atm.optical_profile(wls)
@@ -158,8 +190,12 @@ def main():
     print(f"{scene}: cone {cone:g} deg, sun guide {alpha:g}, {n_paths} paths per view and wavelength, seed {seed}")
     for i in rows:
         rec.clear()
+        rec_spread.clear()
+        rec_first.clear()
         r = m.radiance(sc.dirs[i:i + 1])
         aur = rec[0].reshape(-1, len(wl))[0]
+        one_np = (rec_first[0][0] + rec_spread[0]).reshape(-1, len(wl))[0]  # one non-peak turn: capped first + spread
+        one_pk = rec_first[0][1].reshape(-1, len(wl))[0]  # the peak's single turn
         full = m._aureole_table32
         aur_orders = []
         for t32 in order_tables:  # the aureole term's light of each number of turns
@@ -195,6 +231,18 @@ def main():
                   f"({100 * fin_aur / fin_tot:.1f} % of it); aureole / class {fin_aur / mean[1]:.3f} ± "
                   f"{fin_aur / mean[1] * se[1] / mean[1]:.3f}; final rest / MC rest "
                   f"{(fin_tot - fin_aur) / (mean[0] - mean[1]):.3f} [{time.perf_counter() - t:.0f} s]", flush=True)
+            if os.environ.get("SPLIT"):
+                o1 = 2 + n_orders
+                parts = [("one peak turn", mean[o1], se[o1], one_pk[j] / e0m),
+                         ("pure peak chains", mean[1], se[1], fin_aur),
+                         ("one non-peak turn", mean[o1 + 1], se[o1 + 1], one_np[j] / e0m)]
+                rest_mc = mean[0] - mean[1] - mean[o1] - mean[o1 + 1]
+                rest_fin = fin_tot - fin_aur - (one_pk[j] + one_np[j]) / e0m
+                parts.append(("two or more non-peak turns, ground", rest_mc, float("nan"), rest_fin))
+                for name, mo, so, fo in parts:
+                    print(f"    {name:>35}: MC {mo:.4g} ± {so:.2g} ({100 * mo / mean[0]:.1f} % of the sky), final "
+                          f"{fo:.4g}, final / MC {fo / mo if mo > 0 else float('nan'):.3f}, (final - MC) / MC total "
+                          f"{100 * (fo - mo) / mean[0]:+.2f} %", flush=True)
             for o, a_o in enumerate(aur_orders):
                 turns = f"{o + 2}" if o + 1 < n_orders else f">={o + 2}"
                 mo, so, ao = mean[2 + o], se[2 + o], a_o[j] / e0m
