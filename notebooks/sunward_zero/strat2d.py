@@ -1,7 +1,7 @@
 """The peak's light above a low sun: the aureole's one-line (plane-wave) counting against a
 small-angle transport in the sun's vertical plane, on the same medium and kernel.
 
-usage: [DZ=25] [PLANE=1 [N_ALPHA=40]] [SPREAD=1] [TILTS=b1,b2,..] strat2d.py scene wavelength_nm offsets_deg [x_max_km] [step_m]
+usage: [DZ=25] [INTERP=cubic] [PLANE=1 [N_ALPHA=40]] [SPREAD=1] [TILTS=b1,b2,..] strat2d.py scene wavelength_nm offsets_deg [x_max_km] [step_m]
   e.g. strat2d.py desert:0 650 2,3,4,5,6,8 500 250   (offsets: degrees above the sun)
 
 Both models keep only the aerosols' cut peak as scattering (projected on the elevation axis: the
@@ -126,6 +126,10 @@ beam = direct_table(sig_s_c + sig_p_c)
 ph0 = np.exp(-2j * np.pi * np.arange(K.size) * i0 / nfft)  # a delta at the sun's node
 
 
+#: INTERP=cubic: the rays' moves read a clamped cubic in log|F| (four nodes) instead of log-linear (two)
+CUBIC = os.environ.get("INTERP", "linear") == "cubic"
+
+
 def move_along_rays(F, X, step, signed=False):
     """F (..., nz, nd) at the plane X moved one step toward the observer along its rays: node z'
     reads z' + (delta + X_mid/R) step, log-linear between altitude nodes (exact for the
@@ -140,7 +144,15 @@ def move_along_rays(F, X, step, signed=False):
     cols = np.arange(nd)[None, :]
     a_ = F[..., np.clip(zi, 0, z.size - 1), cols]
     b_ = F[..., np.clip(zi + 1, 0, z.size - 1), cols]
-    mag = np.exp(np.log(np.maximum(np.abs(a_), 1e-300)) * (1.0 - f) + np.log(np.maximum(np.abs(b_), 1e-300)) * f)
+    la, lb = np.log(np.maximum(np.abs(a_), 1e-300)), np.log(np.maximum(np.abs(b_), 1e-300))
+    if CUBIC:  # Catmull-Rom in log|F| through the two nodes either side, clamped to the middle pair's range
+        l0 = np.log(np.maximum(np.abs(F[..., np.clip(zi - 1, 0, z.size - 1), cols]), 1e-300))
+        l3 = np.log(np.maximum(np.abs(F[..., np.clip(zi + 2, 0, z.size - 1), cols]), 1e-300))
+        t2, t3 = f * f, f * f * f
+        lm = 0.5 * ((-t3 + 2 * t2 - f) * l0 + (3 * t3 - 5 * t2 + 2) * la + (-3 * t3 + 4 * t2 + f) * lb + (t3 - t2) * l3)
+        mag = np.exp(np.clip(lm, np.minimum(la, lb), np.maximum(la, lb)))
+    else:
+        mag = np.exp(la * (1.0 - f) + lb * f)
     if not signed:
         out = np.where(ok, mag, 0.0)
         out[out < 1e-250] = 0.0
