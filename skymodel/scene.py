@@ -361,6 +361,22 @@ class SunPlacement:
     day_of_year: int | None = None  #: the UTC date's day of the year, 1..366 (selects the ozone)
 
 
+def _datetime_from_fields(fields) -> _dt.datetime:
+    """``(year, month, day, hour, minute)`` as a naive :class:`datetime.datetime`, each field
+    checked against the registry (a bad one raises naming ``year``, ``month``, ``day``, ...; a
+    day past the month's last names the month's days)."""
+    try:
+        year, month, day, hour, minute = fields
+    except ValueError:
+        raise SkymodelInputError("time_utc", fields, "(year, month, day, hour, minute)") from None
+    year, month = check("year", year), check("month", month)
+    last = calendar.monthrange(year, month)[1]
+    day = check("day", day)
+    if day > last:
+        raise SkymodelInputError("day", day, f"a day 1..{last} for {year}-{month:02d}")
+    return _dt.datetime(year, month, day, check("hour", hour), check("minute", minute))
+
+
 def time_iso(time_utc) -> str:
     """``time_utc`` as ISO 8601 UTC text (``2026-06-21T12:00:00Z``).
 
@@ -371,17 +387,7 @@ def time_iso(time_utc) -> str:
         the registry (a bad field raises naming ``year``, ``month``, ``day``, ...).
     """
     if isinstance(time_utc, (tuple, list)):
-        try:
-            year, month, day, hour, minute = time_utc
-        except ValueError:
-            raise SkymodelInputError("time_utc", time_utc, "(year, month, day, hour, minute)") from None
-        year, month = check("year", year), check("month", month)
-        last = calendar.monthrange(year, month)[1]
-        day = check("day", day)
-        if day > last:
-            raise SkymodelInputError("day", day, f"a day 1..{last} for {year}-{month:02d}")
-        hour, minute = check("hour", hour), check("minute", minute)
-        return _dt.datetime(year, month, day, hour, minute).strftime("%Y-%m-%dT%H:%M:00Z")
+        return _datetime_from_fields(time_utc).strftime("%Y-%m-%dT%H:%M:00Z")
     t = _sun.as_utc_datetime64(str(time_utc).strip() if isinstance(time_utc, str) else time_utc)
     if t.ndim:
         raise SkymodelInputError("time_utc", time_utc, "one date-time")
@@ -504,16 +510,7 @@ def _zone_name(tz) -> str:
 def _parse_datetime(value) -> _dt.datetime:
     """A date-time as a :class:`datetime.datetime` (naive, or aware when it has an offset)."""
     if isinstance(value, (tuple, list)):
-        try:
-            year, month, day, hour, minute = value
-        except ValueError:
-            raise SkymodelInputError("time_utc", value, "(year, month, day, hour, minute)") from None
-        year, month = check("year", year), check("month", month)
-        last = calendar.monthrange(year, month)[1]
-        day = check("day", day)
-        if day > last:
-            raise SkymodelInputError("day", day, f"a day 1..{last} for {year}-{month:02d}")
-        return _dt.datetime(year, month, day, check("hour", hour), check("minute", minute))
+        return _datetime_from_fields(value)
     if isinstance(value, _dt.datetime):
         return value
     if isinstance(value, _dt.date):
