@@ -98,6 +98,23 @@ def add_option(parser, name: str, *, flag: str | None = None, default=REGISTRY, 
                                help=text.replace("%", "%%"), **kwargs)
 
 
+def add_wavelengths_argument(p: argparse.ArgumentParser) -> None:
+    """``--wavelengths``: the point queries' wavelengths (``profile``, ``radiance``), read by
+    :func:`wavelengths_from_args`."""
+    p.add_argument("--wavelengths", default=None,
+                   help="nm, comma-separated, in any order (answered in that order; no duplicates; "
+                        "default 380..780 by 5)")
+
+
+def wavelengths_from_args(args):
+    """``--wavelengths`` as ``(ascending, back)`` (:func:`skymodel.wavelengths.ascending_order`):
+    the grid the core computes on and the index array that answers in the user's order; every
+    value checked (finite, no duplicates, in the wavelengths' range) before any work starts."""
+    from skymodel.wavelengths import ascending_order
+
+    return ascending_order(None if args.wavelengths is None else number_list("wavelengths", args.wavelengths))
+
+
 def add_atmosphere_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by every command that builds an atmosphere."""
     g = p.add_argument_group("atmosphere")

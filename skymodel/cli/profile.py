@@ -8,16 +8,15 @@ import sys
 import numpy as np
 
 from skymodel import scene
-from skymodel.cli.options import add_atmosphere_arguments, add_option, atmosphere_from_args, number_list
+from skymodel.cli.options import (add_atmosphere_arguments, add_option, add_wavelengths_argument,
+                                  atmosphere_from_args, wavelengths_from_args)
 
 
 def add_command(sub) -> None:
     """Register ``skymodel profile`` on the CLI's subparsers."""
     p = sub.add_parser("profile", help="per-wavelength optical depths of an atmosphere")
     add_atmosphere_arguments(p)
-    p.add_argument("--wavelengths", default=None,
-                   help="comma-separated nm, in any order (answered in that order; no duplicates; "
-                        "default 380..780 by 5)")
+    add_wavelengths_argument(p)
     add_option(p, "layers", note="also print N piecewise-constant layers")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_profile)
@@ -106,11 +105,8 @@ def _in_order(summary: dict, back) -> dict:
 
 
 def cmd_profile(args) -> int:
-    from skymodel.wavelengths import ascending_order
-
     layers = scene.check("layers", args.layers)
-    user_wl = None if args.wavelengths is None else number_list("wavelengths", args.wavelengths)
-    wl, back = ascending_order(user_wl)  # computed on an ascending grid, answered in the user's order
+    wl, back = wavelengths_from_args(args)  # computed on an ascending grid, answered in the user's order
     atm = atmosphere_from_args(args)
     prof = atm.optical_profile(wl)
     s = _in_order(profile_summary(prof, layers), back)

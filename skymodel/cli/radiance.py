@@ -8,8 +8,9 @@ from dataclasses import replace
 import numpy as np
 
 from skymodel import scene
-from skymodel.cli.options import (add_atmosphere_arguments, add_option, add_sun_arguments, atmosphere_from_args,
-                                  number_list, profile_for_sun, sun_from_args)
+from skymodel.cli.options import (add_atmosphere_arguments, add_option, add_sun_arguments, add_wavelengths_argument,
+                                  atmosphere_from_args, number_list, profile_for_sun, sun_from_args,
+                                  wavelengths_from_args)
 
 
 def add_command(sub) -> None:
@@ -21,9 +22,7 @@ def add_command(sub) -> None:
     p.add_argument("--relative-azimuth", default="0,90,180",
                    help="degrees from the sun's azimuth (0 = toward the sun), comma-separated "
                         f"({scene.parameter('sun_azimuth').range_text()})")
-    p.add_argument("--wavelengths", default=None,
-                   help="nm, comma-separated, in any order (answered in that order; no duplicates; "
-                        "default 380..780 by 5)")
+    add_wavelengths_argument(p)
     add_option(p, "quality", note="every direction is evaluated exactly (no direction grid)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_radiance)
@@ -33,13 +32,11 @@ def cmd_radiance(args) -> int:
     from skymodel.render.marcher import SkyMarcher
     from skymodel.render.quality import quality_settings
     from skymodel.render.rays import direction_from_angles
-    from skymodel.wavelengths import ascending_order
 
     # every input checked before the atmosphere or the marcher is built
     zen = np.asarray(number_list("view_zenith", args.view_zenith, check="view_zenith"))
     rel = np.asarray(number_list("relative_azimuth", args.relative_azimuth, check="sun_azimuth"))
-    user_wl = None if args.wavelengths is None else number_list("wavelengths", args.wavelengths)
-    wl, back = ascending_order(user_wl)  # the core works on an ascending grid; answered in the user's order
+    wl, back = wavelengths_from_args(args)  # the core works on an ascending grid; answered in the user's order
     settings = replace(quality_settings(scene.check("quality", args.quality)), exact=True)
     atm = atmosphere_from_args(args)
     sun = sun_from_args(args, atm)
