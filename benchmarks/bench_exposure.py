@@ -32,18 +32,11 @@ import bpy  # noqa: E402
 
 def display_png(scene, path):
     """Render ``scene`` to an 8-bit PNG through its view transform; (H, W, 3) in [0, 1], row 0 on top."""
-    from blender_addon.render import _render
+    from blender_addon.render import _render, read_rgb
 
     scene.render.image_settings.color_depth = "8"
     _render(scene, path, "PNG")
-    img = bpy.data.images.load(path, check_existing=False)
-    try:
-        w, h = img.size
-        px = np.empty(w * h * 4, np.float32)
-        img.pixels.foreach_get(px)
-    finally:
-        bpy.data.images.remove(img)
-    return px.reshape(h, w, 4)[::-1, :, :3].copy()
+    return read_rgb(path)
 
 
 def sky_metrics(png):

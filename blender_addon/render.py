@@ -328,11 +328,21 @@ def _render(scene, path, fmt):
 
 def render_linear(scene) -> "np.ndarray":
     """Render and return the scene-linear image (H, W, 3) float32, row 0 at the top."""
-    import numpy as np
-
     folder = tempfile.mkdtemp(prefix="skymodel-render-")
     path = os.path.join(folder, "render.exr")
     _render(scene, path, "OPEN_EXR")
+    try:
+        return read_rgb(path)
+    finally:
+        os.remove(path)
+        os.rmdir(folder)
+
+
+def read_rgb(path) -> "np.ndarray":
+    """An image file as Blender reads it: (H, W, 3) float32, row 0 at the top (an 8-bit PNG in
+    [0, 1], an EXR scene-linear); the image is not kept in ``bpy.data``."""
+    import numpy as np
+
     img = bpy.data.images.load(path, check_existing=False)
     try:
         w, h = img.size
@@ -340,8 +350,6 @@ def render_linear(scene) -> "np.ndarray":
         img.pixels.foreach_get(px)
     finally:
         bpy.data.images.remove(img)
-        os.remove(path)
-        os.rmdir(folder)
     return px.reshape(h, w, 4)[::-1, :, :3].copy()
 
 
