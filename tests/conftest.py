@@ -7,7 +7,7 @@ import tempfile
 import pytest
 
 # before any test module imports bpy: keep Blender's user folders and the add-on's sky cache
-# out of $HOME (a test module may still set its own first)
+# out of $HOME (pytest imports this file before it collects the test modules; they rely on it)
 os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="skymodel-blender-user-"))
 os.environ.setdefault("SKYMODEL_CACHE_DIR", tempfile.mkdtemp(prefix="skymodel-cache-"))
 

@@ -4,14 +4,8 @@ Tiny images everywhere (environment images 64x32, renders 64x32 at <= 16 samples
 whole file runs in well under the project's few-minute budget on 2 cores."""
 
 import math
-import os
-import tempfile
 
 import pytest
-
-# before bpy is imported: keep Blender's user folders and the sky cache out of $HOME
-os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="skymodel-blender-user-"))
-os.environ.setdefault("SKYMODEL_CACHE_DIR", tempfile.mkdtemp(prefix="skymodel-cache-"))
 
 bpy = pytest.importorskip("bpy")
 import numpy as np  # noqa: E402

@@ -50,7 +50,8 @@ import tempfile
 
 import pytest
 
-# before bpy is imported: keep Blender's user folders and the sky cache out of $HOME
+# before bpy is imported: keep Blender's user folders and the sky cache out of $HOME (tests/conftest.py
+# does so under pytest; benchmarks/bench_blender.py imports this module without it)
 os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="skymodel-blender-user-"))
 os.environ.setdefault("SKYMODEL_CACHE_DIR", tempfile.mkdtemp(prefix="skymodel-cache-"))
 

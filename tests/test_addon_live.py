@@ -6,13 +6,8 @@ with a fake clock; the builds run in their real background threads (waited for w
 ``job.wait``). Tiny images (preview 16 px wide, final 32 px) and small preview tables."""
 
 import math
-import os
-import tempfile
 
 import pytest
-
-os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="skymodel-blender-user-"))
-os.environ.setdefault("SKYMODEL_CACHE_DIR", tempfile.mkdtemp(prefix="skymodel-cache-"))
 
 bpy = pytest.importorskip("bpy")
 import numpy as np  # noqa: E402

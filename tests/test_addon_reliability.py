@@ -5,12 +5,8 @@ tiny images."""
 
 import math
 import os
-import tempfile
 
 import pytest
-
-os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="skymodel-blender-user-"))
-os.environ.setdefault("SKYMODEL_CACHE_DIR", tempfile.mkdtemp(prefix="skymodel-cache-"))
 
 bpy = pytest.importorskip("bpy")
 import numpy as np  # noqa: E402
