@@ -117,17 +117,22 @@ class Quality:
 #: (MarchSettings.peak_spread; the 6-degree cone without it put the view on its edge 4 % above
 #: the truth in dust at sun 5): desert 0 degrees' worst -16.4 -> -6.6 % (650 nm, 89/4.9), its 650
 #: nm median 0.63 -> 0.46 %, desert -4 degrees' sunward 88/0 -3.1 -> -1.4 %, desert 5 degrees'
-#: worst 1.16 -> 1.02 % (notebooks/sunward_zero); preview keeps 12 degrees and no spread (with its
-#: 12-degree cone the spread moves the sky by 0.03 % at most, for 9 % of its warm rebuild).
+#: worst 1.16 -> 1.02 % (notebooks/sunward_zero); preview kept 12 degrees and no spread until 2026-11-30,
+#: then took final's 6-degree cone with the spread on 24 x 12 solver nodes (was 16 x 8; the narrow
+#: cone alone on 16 x 8 had moved its errors about): against the truth, its median over the ten scenes
+#: at most 1.15 -> 0.92 % and lower in 8 of them, its worst in twilight rural -4 -6.1 -> +2.1 %, desert
+#: -4 -12.8 -> -6.3 %, desert 0 -19.6 -> -12.9 %, rural 0 -5.7 -> -1.8 %, rural 5 +2.9 -> +1.7 %; the cold
+#: 512x256 build 1.6 -> 2.4-2.5 s, the sun-only rebuild 0.38-0.39 -> 0.41-0.44 s (docs/accuracy.md,
+#: "The preview's cone").
 QUALITIES: dict[str, Quality] = {
     "preview": Quality(
         "preview",
         MarchSettings(view_steps=64, order_tolerance=1e-2, ms_wavelength_step_nm=40.0, table_altitudes=24,
-                      table_mu=16, table_phi=8, table_mus=32, table_steps=32, sun_table_altitudes=64,
+                      table_mu=24, table_phi=12, table_mus=32, table_steps=32, sun_table_altitudes=64,
                       sun_table_x=128, sun_table_steps=96, grid_zenith=64, grid_zenith_ground=16,
-                      grid_azimuth=37, peak_diffuse=True, delta_m_mild_cutoff_deg=0.0, peak_spread=False),
+                      grid_azimuth=37, peak_diffuse=True, delta_m_cutoff_deg=6.0),
         environment_width_px=512, wavelength_step_nm=10.0,
-        purpose=("interactive work: a 512x256 sky in about 3 s cold, 0.3 s when only the sun moves; "
+        purpose=("interactive work: a 512x256 sky in about 3 s cold, 0.4 s when only the sun moves; "
                  "about 1 % median radiance error against a Monte Carlo truth at worst (twilight)"),
         target={"radiance_rel_mean": 0.02, "time_s": 10.0}),
     "final": Quality(
