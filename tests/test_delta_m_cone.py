@@ -61,11 +61,16 @@ def test_the_solution_and_the_medium_carry_the_cone():
     assert solve_sky(prof, replace(fast, delta_m_mild_cutoff_deg=0.0)).medium.cutoff_deg == 12.0
     assert solve_sky(_profile("desert"), fast).medium.cutoff_deg == 12.0
     assert solve_sky(prof, replace(fast, table_phi=6)).medium.cutoff_deg == 12.0
-    # the presets: final and reference take the mild cone, preview keeps 12 degrees (measured:
-    # with its coarse tables the narrow cone moved its errors about, docs/accuracy.md)
-    assert QUALITIES["final"].settings.delta_m_mild_cutoff_deg == 6.0
-    assert QUALITIES["reference"].settings.delta_m_mild_cutoff_deg == 6.0
-    assert QUALITIES["preview"].settings.delta_m_mild_cutoff_deg == 0.0
+    # the presets: every one cuts haze and coarse dust at 6 degrees, with the first scattering's
+    # peak spread (preview too since 2026-11-30, on 24 x 12 nodes: with 12 degrees and 16 x 8 it was
+    # further from the truth at low sun, docs/accuracy.md "The preview's cone")
+    for name, q in QUALITIES.items():
+        s = q.settings
+        for where in ("rural", "desert"):
+            cone = delta_m_cone_deg(_profile(where), s.delta_m_cutoff_deg, s.delta_m_mild_cutoff_deg,
+                                    table_phi=s.table_phi)
+            assert cone == 6.0, (name, where, cone)
+        assert s.peak_spread and s.peak_aureole, name
 
 
 def test_twelve_azimuth_nodes_resolve_the_narrow_cones_field():

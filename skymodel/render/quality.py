@@ -86,7 +86,7 @@ class Quality:
 #: and view_steps 40 -> 64 (the truth table's 7 scenes: median 0.5-1.8 % -> 0.3-1.6 %, worst better in 6;
 #: the warm 512x256 rebuild 0.37 -> 0.51 s); final and reference cut a mild aerosol peak at 6 degrees
 #: (MarchSettings.delta_m_mild_cutoff_deg: rural 0 / -4 degrees worst -5.6 -> -2.8 % and
-#: -4.7 -> -2.0 % in final), preview keeps 12 (on its 16 x 8 nodes 6 degrees moved its errors about);
+#: -4.7 -> -2.0 % in final), preview kept 12 (on its 16 x 8 nodes 6 degrees moved its errors about);
 #: reference table_phi 16 -> 24 (the sky's mean moves with the azimuth count, 8/12/14/16/20/24/32 nodes at
 #: rural 5 degrees, 550 nm: +0.62/-0.07/+0.17/+0.36/+0.14/+0.06/+0.10 %, the sun's forward lobe in the
 #: first-order field falling between nodes; 16 was the worst of them: median 0.30/0.55 -> 0.17/0.33 %
@@ -119,9 +119,10 @@ class Quality:
 #: nm median 0.63 -> 0.46 %, desert -4 degrees' sunward 88/0 -3.1 -> -1.4 %, desert 5 degrees'
 #: worst 1.16 -> 1.02 % (notebooks/sunward_zero); preview kept 12 degrees and no spread until 2026-11-30,
 #: then took final's 6-degree cone with the spread on 24 x 12 solver nodes (was 16 x 8; the narrow
-#: cone alone on 16 x 8 had moved its errors about): against the truth, its median over the ten scenes
-#: at most 1.15 -> 0.92 % and lower in 8 of them, its worst in twilight rural -4 -6.1 -> +2.1 %, desert
-#: -4 -12.8 -> -6.3 %, desert 0 -19.6 -> -12.9 %, rural 0 -5.7 -> -1.8 %, rural 5 +2.9 -> +1.7 %; the cold
+#: cone alone on 16 x 8 had moved its errors about): against the truth, its median at most 1.15 -> 0.92 %
+#: and lower at 20 of the 30 scene-wavelengths (the other ten up by 0.10 point at most, within the
+#: medians' noise), its worst at low sun rural -4 -6.1 -> +2.1 %, desert -4 -12.8 -> -6.3 %, desert 0
+#: -19.6 -> -12.9 %, rural 0 -5.7 -> +1.8 %, rural 5 +2.9 -> +1.7 %; the cold
 #: 512x256 build 1.6 -> 2.4-2.5 s, the sun-only rebuild 0.38-0.39 -> 0.41-0.44 s (docs/accuracy.md,
 #: "The preview's cone").
 QUALITIES: dict[str, Quality] = {
