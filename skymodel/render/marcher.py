@@ -90,6 +90,10 @@ MARCH_PIECE = 1024
 #: Largest peak optical depth (sun path + view path) the aureole table covers; beyond
 #: it the light is spread over tens of degrees and the table's last column is used.
 AUREOLE_MAX_PEAK_TAU = 30.0
+#: The peak-aureole table's grid (:func:`peak_aureole_table`; the peak-spread table shares it):
+#: angles from the sun, 0 to ``aureole.THETA_MAX_RAD``, and peak optical depths, 0 then geometric.
+AUREOLE_TABLE_ANGLES = 601
+AUREOLE_TABLE_DEPTHS = 48
 
 #: steps of the fine march that places the view rays' steps by optical depth
 #: (``MarchSettings.view_depth_share``; 256 and 1024 give the same sky to 0.01 %)
@@ -360,8 +364,8 @@ def peak_aureole_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_
     if shape is None:
         return None
     machine, q, qk = shape
-    theta = np.linspace(0.0, THETA_MAX_RAD, 601)
-    tau = np.concatenate([[0.0], np.geomspace(0.005, AUREOLE_MAX_PEAK_TAU, 47)])
+    theta = np.linspace(0.0, THETA_MAX_RAD, AUREOLE_TABLE_ANGLES)
+    tau = np.concatenate([[0.0], np.geomspace(0.005, AUREOLE_MAX_PEAK_TAU, AUREOLE_TABLE_DEPTHS - 1)])
     return theta, tau, machine.correction_table(q, tau, theta, qk=qk)
 
 

@@ -94,13 +94,14 @@ SKYVIEW_TABLE_BYTES = 0.15 * GIB
 #: camera: the colour preview 512x256 equirectangular at sun 25 peaked at 0.41-0.49 GiB over 6 runs against
 #: 0.33 estimated without it; ``tracemalloc`` traced 0.06 GiB at the march's entry and 0.29 at its peak).
 DIRECT_MARCH_BYTES = 0.12 * GIB
-#: The peak tables a solution keeps through the march [bytes per wavelength]: the aureole's correction
-#: table (601 angles x 48 peak depths, as ``marcher.peak_aureole_table`` builds it) in float64 and the
-#: marcher's float32 copy; with ``MarchSettings.peak_spread`` the first scattering's spread table
-#: (float32) for each of :data:`PEAK_SPREAD_REGIMES` aerosol regimes. Counted since ``preview`` took the
-#: spread (2026-11-30): its colour 128x64 render peaked at 0.34 GiB against 0.26 estimated without them.
-AUREOLE_TABLE_BYTES = 601 * 48 * (8 + 4)
-SPREAD_TABLE_BYTES = 601 * 48 * 4
+#: The peak tables a solution keeps through the march [bytes per cell of their grid, angles x peak depths
+#: (``marcher.AUREOLE_TABLE_ANGLES`` x ``AUREOLE_TABLE_DEPTHS``), per wavelength]: the aureole's correction
+#: table in float64 and the marcher's float32 copy; with ``MarchSettings.peak_spread`` the first
+#: scattering's spread table (float32) for each of :data:`PEAK_SPREAD_REGIMES` aerosol regimes. Counted since
+#: ``preview`` took the spread (2026-11-30): its colour 128x64 render peaked at 0.34 GiB against 0.26
+#: estimated without them.
+AUREOLE_TABLE_BYTES = 8 + 4
+SPREAD_TABLE_BYTES = 4
 #: Aerosol regimes of a sky (every location's has 2: its boundary-layer type and the stratospheric background).
 PEAK_SPREAD_REGIMES = 2
 #: float64 spectral cubes (H x W x n_wl) alive at once, render and writers (measured).
@@ -219,6 +220,7 @@ def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=
     :class:`~skymodel.render.cameras.Camera`: with the sun, the pixels a direct march evaluates
     near the sun are counted (:meth:`~skymodel.render.cameras.Camera.pixels_near`), otherwise
     the share ``1 - cos(sun_exact_deg)`` of all pixels (a hemisphere's; about twice a panorama's)."""
+    from skymodel.render.marcher import AUREOLE_TABLE_ANGLES, AUREOLE_TABLE_DEPTHS
     from skymodel.render.quality import quality_settings
 
     s = quality_settings(quality)
@@ -230,7 +232,8 @@ def estimate_render_memory(width: int, height: int, n_wavelengths: int, quality=
     sun_build = SUN_TABLE_BYTES_PER_SAMPLE * s.sun_table_altitudes * s.sun_table_x * s.sun_table_steps
     tables = max(sun_build, SOLVE_BYTES + TRANSPORT_COPIES * transport + FIELD_COPIES * field)
     grid_dirs = 0 if s.exact else (s.grid_zenith + s.grid_zenith_ground) * s.grid_azimuth
-    peak_tables = (AUREOLE_TABLE_BYTES + (PEAK_SPREAD_REGIMES * SPREAD_TABLE_BYTES if s.peak_spread else 0)) * n_wl
+    cells = AUREOLE_TABLE_ANGLES * AUREOLE_TABLE_DEPTHS * n_wl
+    peak_tables = (AUREOLE_TABLE_BYTES + (PEAK_SPREAD_REGIMES * SPREAD_TABLE_BYTES if s.peak_spread else 0)) * cells
     kept = KEPT_TABLES * transport + grid_dirs * n_wl * 8 * 3 + (peak_tables if s.peak_aureole else 0)
     per_direction = s.view_steps * n_wl * 8.0  # one float64 band array per marched direction
     table = not s.exact and pixels >= _table_min_pixels() and sky_view_table is not False
