@@ -48,6 +48,7 @@ def test_table_matches_direct_marching(skies, aerosol, sun_el):
     does not (1.1-2.5 % here; docs/benchmarks.md, "Large environment maps": `final` 5.9-7.1 % at
     512x256): there 4 %."""
     from skymodel.render.rays import sun_direction
+    from skymodel.validation.truth import angle_to_sun_deg
 
     prof, sol = skies[aerosol]
     cam = make_camera("equirectangular", 160, n_wavelengths=3)
@@ -60,7 +61,7 @@ def test_table_matches_direct_marching(skies, aerosol, sun_el):
     rel = np.abs(tab / np.where(keep[..., None], dire, 1.0) - 1.0)
     assert rel[keep].mean() <= 1e-3, rel[keep].mean()
     dirs, _ = cam.directions()
-    gamma = np.degrees(np.arccos(np.clip(dirs @ sun_direction(sun_el, 150.0), -1.0, 1.0)))
+    gamma = angle_to_sun_deg(dirs.reshape(-1, 3), sun_direction(sun_el, 150.0)).reshape(dirs.shape[:-1])
     ripples = (gamma > sol.medium.cutoff_deg) & (gamma < SETTINGS.sun_exact_deg)
     if aerosol == "desert" and sun_el > 0.0:
         assert rel[keep & ripples].max() <= 4e-2, rel[keep & ripples].max()
