@@ -47,16 +47,16 @@ def chord_light(off, du_lo_deg=-6.0, du_hi_deg=14.0, ds=None):
     keep = zp < s2.TOP_M
     xp, zp = xp[keep], zp[keep]
     dl = s2.h / np.cos(d_v)
-    ext_v = s2.coeff(zp, s2.sig_p_c) + s2.coeff(zp, s2.sig_s_c)
-    t_view = np.exp(-(np.cumsum(ext_v) - 0.5 * ext_v) * dl)
     sp_p = s2.coeff(zp, s2.sig_p_c)
+    ext_v = sp_p + s2.coeff(zp, s2.sig_s_c)
+    t_view = np.exp(-(np.cumsum(ext_v) - 0.5 * ext_v) * dl)
     j_lo = s2.i0 + int(round(np.radians(du_lo_deg) / s2.d_rad))
     j_hi = s2.i0 + int(round(np.radians(du_hi_deg) / s2.d_rad))
     ju = np.arange(max(j_lo, 0), min(j_hi, s2.nd - 1) + 1)
     d_u = s2.delta[ju]
-    taus = np.concatenate([[0.0], np.geomspace(1e-4, 40.0, 160)])
+    taus = np.geomspace(1e-4, 40.0, 160)  # below 1e-4 the first node's value
     g, k = kernel_table(taus)
-    ltau = np.log(taus[1:])
+    ltau = np.log(taus)
     g = g[:, (ju - s2.i0) % s2.nfft]  # (n_tau, U): the chord's first turn plus the turns between
     k_view = k[(s2.i0 + int(round(off / s2.d_rad)) - ju) % s2.nfft]  # the last turn into the view, (U,)
     total = 0.0
@@ -74,12 +74,12 @@ def chord_light(off, du_lo_deg=-6.0, du_hi_deg=14.0, ds=None):
         beam = s2.beam(np.broadcast_to(xq, zq.shape), zq)
         src = cp * beam * np.exp(-tau_s) * step  # (U, S)
         # the angular factor at the chord's peak depth, linear in log(tau)
-        lt = np.log(np.maximum(tau_p, taus[1]))
+        lt = np.log(np.maximum(tau_p, taus[0]))
         f = np.clip((lt - ltau[0]) / (ltau[1] - ltau[0]), 0.0, ltau.size - 1.000001)
         i = f.astype(int)
         w = f - i
         col = np.arange(ju.size)[:, None]
-        ang = g[1 + i, col] * (1 - w) + g[2 + np.minimum(i, ltau.size - 2), col] * w
+        ang = g[i, col] * (1 - w) + g[i + 1, col] * w
         arrive = (src * ang).sum(axis=1)  # L(P, d_u) per unit E, (U,)
         total += sp * tv * dl * np.sum(k_view * arrive) * s2.d_rad
     return total

@@ -3,14 +3,16 @@ and on 24 x 12 (what it is now): render_environment at 512x256, a cold build the
 alternated, three rounds; medians.
 
 usage: preview_time.py location   e.g. rural"""
-import sys, tempfile, time, statistics
+import os, sys, tempfile, time, statistics
 from dataclasses import replace
 from skymodel import Atmosphere
 from skymodel.render import quality as q
 from skymodel.render.environment import render_environment
+sys.path[:0] = [os.path.dirname(os.path.abspath(__file__))]
+from preview_vs_final import preview_before  # noqa: E402
+
 base = q.QUALITIES["preview"]  # as it is now
-was = replace(base.settings, delta_m_cutoff_deg=12.0, delta_m_mild_cutoff_deg=0.0, peak_spread=False, table_phi=8,
-              table_mu=16)  # as it was before d40ed5f
+was = preview_before(base.settings)  # as it was before d40ed5f
 cfg = {"as it was": replace(base, settings=was),
        "6 deg + spread, 16 x 12": replace(base, settings=replace(was, delta_m_cutoff_deg=6.0, peak_spread=True,
                                                                  table_phi=12)),
