@@ -158,19 +158,24 @@ class PeakAureole:
         return out
 
     def spread_table(self, q, g, tau_grid, theta_out, qk=None) -> np.ndarray:
-        """What the peak's small turns do to a smooth angular pattern ``g``: (g * K_tau) - g
-        at ``theta_out`` (radians) for every peak optical depth of ``tau_grid``,
+        """The part of a smooth angular pattern ``g`` that the peak's small turns carry away
+        from where it was: (g * K_tau) - exp(-tau) g, the light turned at least once, at
+        ``theta_out`` (radians) for every peak optical depth of ``tau_grid``,
         (len(theta_out), len(tau_grid), W) in g's units, where
 
             K_tau = sum over n >= 0 of exp(-tau) tau^n / n! q^{*n}
 
         is the angular spread of light that has crossed a peak optical depth tau (n = 0, the
-        part never turned, a delta; q the normalised peak shape, (n, W) on this grid).
-        ``g`` (n, W) on this grid: a radially symmetric, non-negative pattern that vanishes
-        beyond some angle; the spread keeps its integral over the plane, so each column of
-        the result integrates to 0. In Hankel space G (exp(tau (Q - 1)) - 1). Used for the
-        first scattering's non-peak part (:func:`skymodel.render.marcher.peak_spread_table`).
-        ``qk``: q's :meth:`transform`, when the caller has it."""
+        part never turned, a delta; q the normalised peak shape, (n, W) on this grid). The
+        whole change the turns make is this minus (1 - exp(-tau)) g; the caller adds that
+        term with ``g`` read at its own angle, so that ``g``'s fine structure (Mie ripples,
+        which this grid's transforms and the caller's table of angles do not carry alike)
+        cancels exactly where the turns take it away: in Hankel space the table is
+        G exp(-tau) (exp(tau Q) - 1), smooth on the scale of the peak's width. ``g`` (n, W) on
+        this grid: a radially symmetric, non-negative pattern that vanishes beyond some angle.
+        Used for the first scattering's non-peak part
+        (:func:`skymodel.render.marcher.peak_spread_table`). ``qk``: q's :meth:`transform`,
+        when the caller has it."""
         taus = np.asarray(tau_grid, float)
         g = np.asarray(g, float)
         norm = self.ring @ g  # (W,)
@@ -180,5 +185,5 @@ class PeakAureole:
         out = np.zeros((len(theta_out), taus.size, g.shape[1]))
         for j, tau in enumerate(taus):
             if tau > 0:
-                out[:, j] = self._inverse_signed(gk * np.expm1(tau * (qk - 1.0)), theta_out)
+                out[:, j] = self._inverse_signed(gk * (np.exp(-tau) * np.expm1(tau * qk)), theta_out)
         return out

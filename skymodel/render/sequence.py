@@ -39,9 +39,10 @@ __all__ = ["SolutionCache", "render_frame", "render_frame_reduced", "SOLUTION_FO
 #: package's version and :func:`skymodel.render.provenance.package_tag` (any change to the code or
 #: data that makes a solve gives a new name, so no cache serves a solution the code would no
 #: longer make; the key, :func:`optics_key`, covers only the profile and the settings).
-SOLUTION_FORMAT = 7  # 4: the medium carries its delta-M cone (FactoredMedium.cutoff_deg); 5: the
+SOLUTION_FORMAT = 8  # 4: the medium carries its delta-M cone (FactoredMedium.cutoff_deg); 5: the
 #                      peak aureole's FFTLog table (60acfad), the altitude nodes' ground split;
-#                      6: ``to_full`` a SolverSpectrumMap (was a matrix); 7: ``peak_spread``
+#                      6: ``to_full`` a SolverSpectrumMap (was a matrix); 7: ``peak_spread``;
+#                      8: ``peak_spread`` holds only the turned light (the marcher subtracts the rest)
 
 
 class SolutionCache:
