@@ -35,7 +35,8 @@ import time
 import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SCENES = (("rural", 30.0), ("rural", -4.0), ("desert", 60.0), ("desert", 20.0), ("desert", 5.0), ("desert", 0.0))
+SCENES = (("rural", 30.0), ("rural", 3.0), ("rural", 1.0), ("rural", -4.0), ("urban", 4.0), ("desert", 60.0), ("desert", 20.0),
+          ("desert", 5.0), ("desert", 0.0))
 
 
 def cmd_error(args):
@@ -54,8 +55,8 @@ def cmd_error(args):
     dirs, valid = cam.directions()
     red = xyz_reduction(wl)
     solutions = {}
-    print(f"| scene | pixels in the cap | marched exactly | mean all (%) | max all (%) | mean cap (%) | max cap (%) "
-          f"| table s | direct s |")
+    print("| scene | pixels in the cap | marched exactly | mean all (%) | max all (%) | mean cap (%) | max cap (%) "
+          "| table s | direct s |")
     print("|---|---|---|---|---|---|---|---|---|")
     for aerosol, sun in SCENES:
         prof = Atmosphere(location=aerosol, month=6).optical_profile(wl)

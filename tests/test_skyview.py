@@ -37,19 +37,18 @@ def _outside_disc(cam, sun_el, sun_az):
     return valid & (dirs @ sun_direction(sun_el, sun_az) < np.cos(np.radians(0.3)))
 
 
-@pytest.mark.parametrize("aerosol, sun_el", [("rural", 30.0), ("rural", -4.0), ("desert", 60.0), ("desert", 5.0),
-                                             ("desert", 0.0)])
+@pytest.mark.parametrize("aerosol, sun_el", [("rural", 30.0), ("rural", -4.0), ("desert", 60.0), ("desert", 20.0),
+                                             ("desert", 5.0), ("desert", 0.0)])
 def test_table_matches_direct_marching(skies, aerosol, sun_el):
     """Mean <= 0.1 %, max <= 0.5 % (XYZ, per channel) outside the sun disc, as the issue asks;
-    a 160x80 panorama puts ~60 pixels in the sun cap. One exception, measured: in coarse desert
-    dust with the sun clear of the horizon, between the delta-M cone (6 degrees) and the cap's
-    edge, direct marching follows the ripples of the dust's phase function through the delta-M
-    first scattering, which the cap's smooth interpolation of everything but single scattering
-    does not (1.1-2.5 % here; docs/benchmarks.md, "Large environment maps": `final` 5.9-7.1 % at
-    512x256): there 4 %."""
-    from skymodel.render.rays import sun_direction
-    from skymodel.validation.truth import angle_to_sun_deg
+    a 160x80 panorama puts ~60 pixels in the sun cap. Coarse desert dust included (measured max
+    0.32/0.15/0.16 % at sun 60/20/5): until the peak spread cancelled the phase function's
+    ripples (c9d5e72), direct marching drew rings 6-12 degrees from the sun that no cap follows
+    (1.1-2.5 % here, 5.9-7.1 % at 512x256 `final`)."""
+    _check_table(skies, aerosol, sun_el, 5e-3)
 
+
+def _check_table(skies, aerosol, sun_el, max_rel):
     prof, sol = skies[aerosol]
     cam = make_camera("equirectangular", 160, n_wavelengths=3)
     red = xyz_reduction(WL)
@@ -60,13 +59,17 @@ def test_table_matches_direct_marching(skies, aerosol, sun_el):
     keep = _outside_disc(cam, sun_el, 150.0) & (dire[..., 1] > 0)
     rel = np.abs(tab / np.where(keep[..., None], dire, 1.0) - 1.0)
     assert rel[keep].mean() <= 1e-3, rel[keep].mean()
-    dirs, _ = cam.directions()
-    gamma = angle_to_sun_deg(dirs.reshape(-1, 3), sun_direction(sun_el, 150.0)).reshape(dirs.shape[:-1])
-    ripples = (gamma > sol.medium.cutoff_deg) & (gamma < SETTINGS.sun_exact_deg)
-    if aerosol == "desert" and sun_el > 0.0:
-        assert rel[keep & ripples].max() <= 4e-2, rel[keep & ripples].max()
-        keep &= ~ripples
-    assert rel[keep].max() <= 5e-3, rel[keep].max()
+    assert rel[keep].max() <= max_rel, rel[keep].max()
+
+
+@pytest.mark.parametrize("sun_el", [3.0, 1.0])
+def test_table_beside_a_low_sun(skies, sun_el):
+    """Beside a sun a few degrees up, on its own row, the cap holds exact / main grid (within
+    4 degrees of the horizon) and the main grid's cells cut the aureole's fall into kinks: read
+    in its logarithm the base follows the fall. Measured max here 1.2/1.3 % at sun 3/1 (2.7/4.2 %
+    with the base read linearly); at 512x256 `preview` rural 1 deg 1.9 %, `final` 0.64 %
+    (docs/benchmarks.md, "Large environment maps"): the known limit, over the issue's 0.5 %."""
+    _check_table(skies, "rural", sun_el, 2e-2)
 
 
 def test_spectral_table_and_rgb_finish(skies):
