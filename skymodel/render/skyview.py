@@ -23,8 +23,9 @@ node instead of 81), on two direction grids (as the sky-view LUT of Hillaire 202
   same symmetry, :data:`CAP_AROUND` nodes), marched exactly once per sun. A pixel in the
   cap is interpolated bilinearly in (log angle, angle around): within
   :data:`CAP_RATIO_DEG` of the horizon the ratio exact / main grid (the main grid's
-  crowded zenith nodes carry the horizon's steep gradient; read bilinearly in its logarithm
-  for this, so that its cells beside a low sun do not cut the aureole's fall into kinks),
+  crowded zenith nodes carry the horizon's steep gradient; read in its logarithm for this, along
+  its rows linearly in the logarithm of the angle from the sun, so that its cells beside a low sun
+  do not cut the aureole's power-law fall into kinks),
   elsewhere the logarithm of the value (the aureole falls as a power of the angle). A cap whose lowest point is
   :data:`CAP_RATIO_DEG` + :data:`CAP_CLEAR_MARGIN_DEG` or more above the horizon (a sun
   above 17 degrees for ``final``'s 12-degree cap) is *clear*: it keeps every other node
@@ -287,9 +288,11 @@ class SkyViewTable:
                    + self.log_ratio.shape[0] * self.log_ratio.shape[1])
 
     def _main(self, d, zen, below, log: bool = False):
-        """Bilinear values (N, K) of the main grid at directions d (N, 3) (``log``: bilinear in
-        the logarithm, the base of the cap's ratio near the horizon, where the cell's weighted
-        nodes are all positive; linear elsewhere)."""
+        """Bilinear values (N, K) of the main grid at directions d (N, 3). ``log``: the base of the
+        cap's ratio near the horizon, interpolated in the logarithm, along each row of equal
+        zenith angle linearly in the logarithm of the angle from the sun (exact for a power law of
+        it, the aureole's fall; that angle grows monotonically with the azimuth from the sun along
+        a row), then linearly in the zenith angle; linear where a weighted node is not positive."""
         dh = d[:, :2]
         sun_h = self.sun[:2]
         nrm = np.linalg.norm(dh, axis=1) * np.linalg.norm(sun_h)
@@ -306,8 +309,28 @@ class SkyViewTable:
                 vals[mask] = _bilinear(tab, *cell)
                 if log:
                     positive = _bilinear(pos_tab, *cell) > 1.0 - 1e-12
-                    vals[mask] = np.where(positive, np.exp(_bilinear(log_tab, *cell)), vals[mask])
+                    vals[mask] = np.where(positive, np.exp(self._log_rows(log_tab, axis, *cell, rel[mask])),
+                                          vals[mask])
         return vals
+
+    def _log_rows(self, log_tab, axis, i, fi, j, fj, rel):
+        """``log_tab`` (a main-grid table's logarithm, zenith nodes ``axis``) at cells (i, fi) x
+        (j, fj) of directions at azimuth ``rel`` [rad] from the sun: along the rows i and i + 1
+        linearly in log(angle from the sun) between the azimuth nodes j and j + 1 (in the
+        azimuth where the two angles are equal), then linearly in zenith. (N, K)."""
+        cos_zs, sin_zs = self.sun[2], np.sqrt(max(0.0, 1.0 - self.sun[2] ** 2))
+
+        def log_gamma(zr, a):
+            c = np.cos(zr) * cos_zs + np.sin(zr) * sin_zs * np.cos(a)
+            return np.log(np.maximum(np.arccos(np.clip(c, -1.0, 1.0)), 1e-6))
+
+        rows = []
+        for r in (i, i + 1):
+            g0, g1, g = log_gamma(axis[r], self.azimuth[j]), log_gamma(axis[r], self.azimuth[j + 1]), log_gamma(axis[r], rel)
+            span = np.abs(g1 - g0) > 1e-9
+            w = np.clip(np.where(span, (g - g0) / np.where(span, g1 - g0, 1.0), fj), 0.0, 1.0)[:, None]
+            rows.append(log_tab[r, j] * (1.0 - w) + log_tab[r, j + 1] * w)
+        return rows[0] * (1.0 - fi[:, None]) + rows[1] * fi[:, None]
 
     def lookup(self, directions) -> np.ndarray:
         """Reduced values (N, K) for unit ``directions`` (N, 3)."""
