@@ -170,10 +170,9 @@ def main():
         rec_spread.append(out - alone)
         return out
 
-    def hook_first(self, cos_theta, dt, ray, regimes, aers, pa, c_aer, trans_s, t_sun_s):
+    def hook_first(self, cos_theta, dt, ray, regimes, aers, pa, p_cap, c_aer, trans_s, t_sun_s):
         # the delta-M first scattering: the peak's single turn (true extinction) and the rest
-        out = orig_first(self, cos_theta, dt, ray, regimes, aers, pa, c_aer, trans_s, t_sun_s)
-        p_cap = self._capped_aerosol_phase(cos_theta)
+        out = orig_first(self, cos_theta, dt, ray, regimes, aers, pa, p_cap, c_aer, trans_s, t_sun_s)
         peak = sum(np.maximum(pa[reg] - p_cap[reg], 0.0) * c for reg, c in zip(regimes, c_aer))
         peak = self.profile.solar_irradiance * peak
         rec_first.append((out - peak, peak))

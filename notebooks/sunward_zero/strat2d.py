@@ -268,7 +268,7 @@ def main():
         # second population B (once scattered by p_cap) is marched with the turned light A.
         cut_deg = float(os.environ.get("SPREAD_DEG", "15"))
         ang = prof.aerosol_phase_angles_deg
-        capped = med.truncated_phase * (1.0 - med.forward_fraction)[:, None, :]  # (Rg, A, 1) sr^-1
+        capped = med.capped_phase  # (Rg, A, 1) sr^-1
         kc = np.zeros((sig_a_c.shape[0], nfft))
         for r in range(sig_a_c.shape[0]):
             x, k = projected_kernel(ang, np.where(ang[:, None] <= cut_deg, capped[r], 0.0))  # rad^-1

@@ -429,7 +429,7 @@ def peak_spread_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_m
         return None
     machine, q, qk = shape
     angles = profile.aerosol_phase_angles_deg
-    capped = medium.truncated_phase * (1.0 - medium.forward_fraction)[:, None, :]  # (R, A, W): min(p, p(cutoff))
+    capped = medium.capped_phase  # (R, A, W): min(p, p(cutoff))
     floor = peak_spread_floor(profile, medium)
     inside = machine.theta[:, None] < np.radians(PEAK_SPREAD_MAX_DEG)
     out = np.zeros((capped.shape[0], np.size(theta_rad), np.size(tau_grid), capped.shape[2]), dtype=np.float32)
@@ -444,10 +444,10 @@ def peak_spread_table(profile, medium, delta_m_cutoff_deg: float, top_altitude_m
 def peak_spread_floor(profile, medium) -> np.ndarray:
     """Each aerosol regime's capped phase function at :data:`PEAK_SPREAD_MAX_DEG` from the sun,
     (R, W) sr^-1: what :func:`peak_spread_table` leaves unspread."""
-    capped = medium.truncated_phase * (1.0 - medium.forward_fraction)[:, None, :]  # (R, A, W)
-    angles = profile.aerosol_phase_angles_deg
-    return np.array([[np.interp(PEAK_SPREAD_MAX_DEG, angles, capped[r, :, w]) for w in range(capped.shape[2])]
-                     for r in range(capped.shape[0])]).reshape(capped.shape[0], capped.shape[2])
+    angles = np.asarray(profile.aerosol_phase_angles_deg, float)
+    k = int(np.clip(np.searchsorted(angles, PEAK_SPREAD_MAX_DEG, side="right") - 1, 0, angles.size - 2))
+    t = (PEAK_SPREAD_MAX_DEG - angles[k]) / (angles[k + 1] - angles[k])
+    return medium.capped_phase[:, k] * (1.0 - t) + medium.capped_phase[:, k + 1] * t
 
 
 class SkyMarcher:
@@ -605,15 +605,14 @@ class SkyMarcher:
         grid = prof.aerosol_phase_angles_deg
         idx = np.clip(np.searchsorted(grid, theta, side="right") - 1, 0, grid.size - 2)
         t = ((theta - grid[idx]) / (grid[idx + 1] - grid[idx]))[..., None]
-        tab = self.medium.truncated_phase * (1.0 - self.medium.forward_fraction)[:, None, :]
+        tab = self.medium.capped_phase
         return tab[:, idx, :] * (1.0 - t) + tab[:, idx + 1, :] * t
 
-    def _spread_patterns(self, cos_theta, regimes):
+    def _spread_patterns(self, cos_theta, p_cap, regimes):
         """Each regime's pattern that :func:`peak_spread_table` spreads, at angles ``cos_theta``
         (G, A): max(p_cap - :func:`peak_spread_floor`, 0) within :data:`PEAK_SPREAD_MAX_DEG` of the
-        sun, 0 beyond, with p_cap read as :meth:`_capped_aerosol_phase` reads it; a list of
-        (G, A, n_wl) float32."""
-        p_cap = self._capped_aerosol_phase(cos_theta)
+        sun, 0 beyond, ``p_cap`` (R, G, A, n_wl) the capped phase there as
+        :meth:`_capped_aerosol_phase` reads it; a list of (G, A, n_wl) float32."""
         near = (cos_theta > np.cos(np.radians(PEAK_SPREAD_MAX_DEG)))[..., None]
         return [np.where(near, np.maximum(p_cap[reg] - self._spread_floor[reg], 0.0), 0.0).astype(np.float32)
                 for reg in regimes]
@@ -679,7 +678,7 @@ class SkyMarcher:
                     out[g, a] += (weight[g] * t_first * c).sum(axis=1)
         return out * self.profile.solar_irradiance
 
-    def _delta_m_first_scattering(self, cos_theta, dt, ray, regimes, aers, pa, c_aer, trans_s, t_sun_s):
+    def _delta_m_first_scattering(self, cos_theta, dt, ray, regimes, aers, pa, p_cap, c_aer, trans_s, t_sun_s):
         """The first scattering of sunlight as the delta-M solver counts it, (G, A, n_wl)
         for directions on rings as in :meth:`_march`: the part of every phase function
         outside the truncated forward peak, p_cap = min(p, p(cutoff)), seen through the
@@ -687,9 +686,10 @@ class SkyMarcher:
         as in the solver's diffuse field), the peak p - p_cap through the true extinction.
         Its excess over true single scattering is light the solver's orders >= 2 leave out
         (the forward-scattered part of the scaled-out extinction), so the total keeps it,
-        in ``multiple``. ``c_aer``: each regime's column sum_s T t_sun sigma_r dt."""
+        in ``multiple``. ``pa``, ``p_cap``: each regime's phase function and capped phase function
+        (:meth:`_capped_aerosol_phase`) at the directions, (R, G, A, W); ``c_aer``: each regime's
+        column sum_s T t_sun sigma_r dt."""
         prof = self.profile
-        p_cap = self._capped_aerosol_phase(cos_theta)  # (R, G, A, W)
         w_s = trans_s * dt[..., None]
         first = prof.rayleigh_phase(cos_theta) * _column(w_s * ray, t_sun_s)
         for reg, sig, c in zip(regimes, aers, c_aer):
@@ -856,7 +856,8 @@ class SkyMarcher:
             step_tau_s = ext_s * dtw
             trans_s = step_transmittance(step_tau_s, dtype=np.float32)
             t_sun_s = scaled[0]
-            first = self._delta_m_first_scattering(cos_theta, rings.dt, ray, regimes, aers, pa, c_aer, trans_s,
+            p_cap = self._capped_aerosol_phase(cos_theta)  # (R, G, A, W)
+            first = self._delta_m_first_scattering(cos_theta, rings.dt, ray, regimes, aers, pa, p_cap, c_aer, trans_s,
                                                    t_sun_s)
             rebalance = first - single
             if self._aureole is not None:
@@ -864,7 +865,7 @@ class SkyMarcher:
                 spread = None
                 if self._spread is not None:  # the first scattering's capped phase, spread by the peak
                     spread = (regimes, [(trans_s * dtw * sig).astype(np.float32) for sig in aers], t_sun_s,
-                              self._spread_patterns(cos_theta, regimes))
+                              self._spread_patterns(cos_theta, p_cap, regimes))
                 aureole = self._aureole_gather(cos_theta, rings.dt, ext, ext_s, t_sun, scaled[1], trans_s,
                                                spread=spread)
         # ground seen directly: direct sun and (from the solver) diffuse sky light

@@ -102,6 +102,13 @@ class FactoredMedium:
     truncated_phase: np.ndarray  # (n_regime, n_angle, n_wl), normalised over 4 pi
     cutoff_deg: float  # half-angle of the cut cone (degrees)
 
+    @property
+    def capped_phase(self) -> np.ndarray:
+        """(1 - f) p*: each regime's phase function with its forward peak clipped at the cut,
+        min(p, p(cutoff)), not renormalised, on the profile's phase angles (n_regime, n_angle,
+        n_wl) sr^-1."""
+        return self.truncated_phase * (1.0 - self.forward_fraction)[:, None, :]
+
 
 def truncate_forward_peak(angles_deg, phase, cutoff_deg: float):
     """Delta-M style truncation of tabulated phase functions.
